@@ -1,0 +1,42 @@
+# Quick start (see README):  make train task=stage6   |   make test
+# Each target creates .venv on first use (Python 3.11) and installs mjnav into it.
+
+PYTHON ?= python3.11
+VENV   ?= .venv
+# CPU build from the local wheel; set TORCH=torch for a CUDA build on a GPU box.
+TORCH  ?= torch==2.13.0
+task   ?= stage6
+args   ?=
+
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.mjnav-installed
+
+.PHONY: setup train demo test bench export clean
+
+$(STAMP): pyproject.toml
+	@command -v $(PYTHON) >/dev/null || { echo "$(PYTHON) not found: set PYTHON=/path/to/python3.11"; exit 1; }
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q "$(TORCH)"
+	$(BIN)/python -m pip install -q -e ".[test]"
+	@touch $(STAMP)
+
+setup: $(STAMP)
+
+train: $(STAMP)
+	$(BIN)/python scripts/train.py task=$(task) $(args)
+
+demo: $(STAMP)
+	$(BIN)/python scripts/demo.py task=$(task) $(args)
+
+test: $(STAMP)
+	MUJOCO_GL=egl $(BIN)/python -m pytest tests $(args)
+
+bench: $(STAMP)
+	$(BIN)/python scripts/benchmark.py task=$(task) $(args)
+
+export: $(STAMP)
+	$(BIN)/python scripts/export_world.py task=$(task) $(args)
+
+clean:
+	rm -rf $(VENV) .pytest_cache

@@ -1,0 +1,453 @@
+"""Typed, frozen config dataclasses for the world, robot and task terms, and the
+generic validated merge used by the stage loader (:mod:`mjnav.config`).
+
+Every dataclass validates its values in ``__post_init__``; :func:`merge` rejects
+unknown keys and wrong types with the key's dotted path. Units are SI.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from typing import Any, Literal
+
+import yaml
+
+__all__ = [
+    "ArenaConfig",
+    "ConfigError",
+    "CrowdConfig",
+    "LayoutConfig",
+    "LidarConfig",
+    "ObservationConfig",
+    "ObstacleConfig",
+    "RewardConfig",
+    "RobotConfig",
+    "TimingConfig",
+    "apply_overrides",
+    "from_dict",
+    "merge",
+    "parse_override",
+    "to_dict",
+]
+
+
+class ConfigError(ValueError):
+    """A config key or value is invalid; the message names the key and source."""
+
+
+def _check(cond: bool, name: str, msg: str) -> None:
+    if not cond:
+        raise ValueError(f"{name}: {msg}")
+
+
+def _check_range(pair: tuple[float, float], name: str, low: float = 0.0) -> None:
+    _check(len(pair) == 2, name, "expects [min, max]")
+    _check(low <= pair[0] <= pair[1], name, f"needs {low} <= min <= max, got {list(pair)}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ArenaConfig:
+    """Walled rectangle around the stage interior.
+
+    Attributes:
+        size: Interior extent (x, y) in metres; the interior is centred on the origin.
+        wall_thickness: Wall thickness in metres.
+        wall_height: Wall height in metres.
+    """
+
+    size: tuple[float, float] = (20.0, 30.0)
+    wall_thickness: float = 0.1
+    wall_height: float = 0.6
+
+    def __post_init__(self) -> None:
+        _check(len(self.size) == 2 and min(self.size) >= 2.0, "size", "needs two extents >= 2 m")
+        _check(self.wall_thickness > 0, "wall_thickness", "must be > 0")
+        _check(self.wall_height > 0, "wall_height", "must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObstacleConfig:
+    """Static polygon prisms (triangles and quadrilaterals on a circle).
+
+    Attributes:
+        count: Obstacles per episode.
+        slots: Compiled obstacle slots (>= count); unused slots are parked.
+        circumradius: Radius of the circle the vertices lie on, metres.
+        min_area: Smallest accepted polygon area (rejects slivers), m².
+        max_area: Largest accepted polygon area, m².
+        bank_size: Number of shapes in the per-task shape bank.
+        bank_seed: Seed of the shape bank (shared by every environment of a task).
+        height: Prism height, metres.
+    """
+
+    count: int = 0
+    slots: int = 10
+    circumradius: float = 1.0
+    min_area: float = 0.3
+    max_area: float = 2.0
+    bank_size: int = 64
+    bank_seed: int = 0
+    height: float = 0.6
+
+    def __post_init__(self) -> None:
+        _check(self.count >= 0, "count", "must be >= 0")
+        _check(self.slots >= self.count, "slots", f"must be >= count ({self.count})")
+        _check(self.circumradius > 0, "circumradius", "must be > 0")
+        _check(0 <= self.min_area < self.max_area, "min_area", "needs 0 <= min_area < max_area")
+        _check(self.bank_size >= 1, "bank_size", "must be >= 1")
+        _check(self.height > 0, "height", "must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class CrowdConfig:
+    """Pedestrians: mocap-driven cylinders.
+
+    Attributes:
+        count: Pedestrians per episode.
+        slots: Compiled pedestrian slots (>= count); unused slots are parked.
+        radius: Radius range [min, max], metres.
+        speed: Speed range [min, max], m/s.
+        model: Motion model, ``random_walk`` (paper) or ``social_force``.
+        yaw_rate: Random-walk heading rate bound, rad/s (uniform in ±yaw_rate).
+        height: Cylinder height, metres.
+        relaxation_time: Social force: time to reach the desired velocity, s.
+        repulsion_strength: Social force: pedestrian repulsion magnitude, m/s².
+        repulsion_range: Social force: repulsion decay length, metres.
+        wall_strength: Social force: wall/obstacle repulsion magnitude, m/s².
+        wall_range: Social force: wall/obstacle repulsion decay length, metres.
+        robot_strength: Social force: robot repulsion magnitude, m/s².
+        goal_tolerance: Social force: distance at which a new goal is drawn, metres.
+    """
+
+    count: int = 0
+    slots: int = 0
+    radius: tuple[float, float] = (0.2, 0.3)
+    speed: tuple[float, float] = (0.3, 0.3)
+    model: Literal["random_walk", "social_force"] = "random_walk"
+    yaw_rate: float = math.pi / 6
+    height: float = 1.7
+    relaxation_time: float = 0.5
+    repulsion_strength: float = 2.1
+    repulsion_range: float = 0.3
+    wall_strength: float = 10.0
+    wall_range: float = 0.2
+    robot_strength: float = 2.1
+    goal_tolerance: float = 0.5
+
+    def __post_init__(self) -> None:
+        _check(self.count >= 0, "count", "must be >= 0")
+        _check(self.slots == 0 or self.slots >= self.count, "slots", "must be 0 (= count) or >= count")
+        _check_range(self.radius, "radius", low=0.01)
+        _check_range(self.speed, "speed")
+        _check(self.yaw_rate >= 0, "yaw_rate", "must be >= 0")
+        _check(self.height > 0, "height", "must be > 0")
+        _check(self.relaxation_time > 0, "relaxation_time", "must be > 0")
+
+    @property
+    def num_slots(self) -> int:
+        """Compiled pedestrian slots (``slots`` or ``count`` when 0)."""
+        return max(self.slots, self.count)
+
+
+@dataclasses.dataclass(frozen=True)
+class RobotConfig:
+    """Omni-directional point-mass robot (disc) and its tracking controller.
+
+    Attributes:
+        radius: Disc radius, metres.
+        mass: Mass, kg.
+        height: Disc height, metres.
+        v_max: Per-axis velocity limit, m/s.
+        a_max: Per-axis acceleration limit, m/s².
+        j_max: Per-axis jerk limit, m/s³.
+        force_max: Actuator force limit per axis, N (feed-forward plus feedback).
+        kv: Velocity feedback gain of the tracking controller, 1/s.
+        kp: Position feedback gain of the tracking controller, 1/s².
+    """
+
+    radius: float = 0.225
+    mass: float = 10.0
+    height: float = 0.3
+    v_max: float = 2.5
+    a_max: float = 4.0
+    j_max: float = 8.0
+    force_max: float = 200.0
+    kv: float = 10.0
+    kp: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "mass", "height", "v_max", "a_max", "j_max", "force_max"):
+            _check(getattr(self, name) > 0, name, "must be > 0")
+        _check(self.kv >= 0 and self.kp >= 0, "kv", "gains must be >= 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class LidarConfig:
+    """Planar 360° rangefinder.
+
+    Attributes:
+        beams: Number of beams (beam 0 along +x, counter-clockwise).
+        max_range: Range, metres; no hit reads max_range.
+        noise_std: Gaussian noise per beam, metres (clipped to [0, max_range]).
+        backend: ``analytic`` (exact 2-D ray casting) or ``mujoco`` (rangefinders).
+        height: Beam height above the floor, metres.
+    """
+
+    beams: int = 360
+    max_range: float = 10.0
+    noise_std: float = 0.05
+    backend: Literal["analytic", "mujoco"] = "analytic"
+    height: float = 0.3
+
+    def __post_init__(self) -> None:
+        _check(self.beams >= 8, "beams", "must be >= 8")
+        _check(self.max_range > 0, "max_range", "must be > 0")
+        _check(self.noise_std >= 0, "noise_std", "must be >= 0")
+        _check(self.height > 0, "height", "must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class TimingConfig:
+    """Control and physics timing.
+
+    Attributes:
+        control_period: One RL/MPC step, seconds.
+        substeps: Physics steps per control period.
+        episode_steps: Control steps before a timeout (truncation).
+    """
+
+    control_period: float = 0.1
+    substeps: int = 5
+    episode_steps: int = 300
+
+    def __post_init__(self) -> None:
+        _check(self.control_period > 0, "control_period", "must be > 0")
+        _check(self.substeps >= 1, "substeps", "must be >= 1")
+        _check(self.episode_steps >= 1, "episode_steps", "must be >= 1")
+
+    @property
+    def physics_timestep(self) -> float:
+        """Physics step, seconds."""
+        return self.control_period / self.substeps
+
+
+@dataclasses.dataclass(frozen=True)
+class LayoutConfig:
+    """Episode layout sampling rules (spec §9).
+
+    Attributes:
+        start_goal_min_distance: Minimum start-goal distance, metres.
+        start_goal_max_distance: Maximum start-goal distance, metres (0 = no limit).
+        free_clearance: Clearance of start/goal from walls and obstacles, metres.
+        obstacle_clearance: Minimum distance of obstacle centres from start and goal, metres.
+        min_start_scan: Re-sample until the nearest shrunk scan reading at the start exceeds this, metres.
+        pedestrian_gap: Minimum gap between pedestrians at spawn, metres.
+        max_attempts: Attempts before sampling fails with an error.
+    """
+
+    start_goal_min_distance: float = 1.0
+    start_goal_max_distance: float = 0.0
+    free_clearance: float = 0.5
+    obstacle_clearance: float = 1.95
+    min_start_scan: float = 1.0
+    pedestrian_gap: float = 0.1
+    max_attempts: int = 1000
+
+    def __post_init__(self) -> None:
+        _check(self.start_goal_min_distance >= 0, "start_goal_min_distance", "must be >= 0")
+        _check(self.max_attempts >= 1, "max_attempts", "must be >= 1")
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardConfig:
+    """Reward terms and weights (spec §7).
+
+    Attributes:
+        variant: ``r_t1`` (all), ``r_t2`` (no change term), ``r_t3`` (no feasibility), ``r_t4`` (neither).
+        goal_tolerance: Success distance d_th, metres.
+        success: Success bonus.
+        collision: Collision penalty (negative).
+        proximity_scale: Proximity penalty scale (negative).
+        proximity_decay: Proximity exponential decay, 1/m.
+        proximity_range: Proximity applies when the min shrunk scan is below this, metres.
+        approach_gain: Gain when approaching the goal.
+        recede_gain: Gain when receding.
+        approach_clip: Clip of the approach term's magnitude.
+        feasibility: Feasibility weight (negative).
+        feasibility_clip: Clip of the feasibility term's magnitude.
+        change: Change weight (negative).
+        slow: Slow-speed step penalty (negative).
+        speed_scale: Speed normaliser of the slow term, m/s.
+        velocity_change: Velocity-change penalty weight (negative).
+        constant: Constant step reward.
+    """
+
+    variant: Literal["r_t1", "r_t2", "r_t3", "r_t4"] = "r_t1"
+    goal_tolerance: float = 0.7
+    success: float = 140.0
+    collision: float = -30.0
+    proximity_scale: float = -1.8
+    proximity_decay: float = 2.0
+    proximity_range: float = 2.0
+    approach_gain: float = 3.0
+    recede_gain: float = 2.0
+    approach_clip: float = 1.5
+    feasibility: float = -0.15
+    feasibility_clip: float = 1.2
+    change: float = -0.15
+    slow: float = -0.01
+    speed_scale: float = 2.5 * math.sqrt(2.0)
+    velocity_change: float = -0.008
+    constant: float = 0.0
+
+    def __post_init__(self) -> None:
+        _check(self.goal_tolerance > 0, "goal_tolerance", "must be > 0")
+        _check(self.speed_scale > 0, "speed_scale", "must be > 0")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationConfig:
+    """Observation layout options (spec §6).
+
+    Attributes:
+        frames: Stacked frames.
+        angle: ``mpc`` (code: previous MPC direction vs goal) or ``velocity`` (paper).
+    """
+
+    frames: int = 3
+    angle: Literal["mpc", "velocity"] = "mpc"
+
+    def __post_init__(self) -> None:
+        _check(self.frames >= 1, "frames", "must be >= 1")
+
+
+def _is_dataclass_type(tp: Any) -> bool:
+    return isinstance(tp, type) and dataclasses.is_dataclass(tp)
+
+
+def _coerce(value: Any, tp: Any, path: str) -> Any:
+    """Convert a YAML value to the annotated type or raise ConfigError naming ``path``."""
+    origin = typing.get_origin(tp)
+    if _is_dataclass_type(tp):
+        if not isinstance(value, dict):
+            raise ConfigError(f"{path}: expected a mapping, got {value!r}")
+        return from_dict(tp, value, path)
+    if origin is Literal:
+        if value not in typing.get_args(tp):
+            raise ConfigError(f"{path}: {value!r} is not one of {list(typing.get_args(tp))}")
+        return value
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)) or len(value) != len(args):
+            raise ConfigError(f"{path}: expected a list of {len(args)} values, got {value!r}")
+        return tuple(_coerce(v, a, f"{path}[{i}]") for i, (v, a) in enumerate(zip(value, args)))
+    if origin in (typing.Union, types.UnionType):
+        for arg in typing.get_args(tp):
+            if arg is type(None) and value is None:
+                return None
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        return _coerce(value, args[0], path)
+    return _coerce_scalar(value, tp, path)
+
+
+def _coerce_scalar(value: Any, tp: Any, path: str) -> Any:
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{path}: expected true/false, got {value!r}")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{path}: expected an integer, got {value!r}")
+        return value
+    if tp is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ConfigError(f"{path}: expected a finite number, got {value!r}")
+        return float(value)
+    if tp is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{path}: expected a string, got {value!r}")
+        return value
+    raise ConfigError(f"{path}: unsupported field type {tp!r}")
+
+
+def from_dict(cls: type, data: dict[str, Any], path: str = "") -> Any:
+    """Build dataclass ``cls`` from a (partial) mapping over its defaults.
+
+    Args:
+        cls: A (frozen) config dataclass.
+        data: Keys to set; missing keys keep their defaults, nested mappings recurse.
+        path: Dotted prefix used in error messages.
+
+    Returns:
+        The validated instance.
+
+    Raises:
+        ConfigError: On an unknown key, a value of the wrong type or an invalid value.
+    """
+    return merge(cls(), data, path)
+
+
+def merge(base: Any, data: dict[str, Any], path: str = "") -> Any:
+    """Return ``base`` with the keys of ``data`` replaced (recursively, validated)."""
+    hints = typing.get_type_hints(type(base))
+    names = {f.name for f in dataclasses.fields(base)}
+    changes: dict[str, Any] = {}
+    for key, value in data.items():
+        where = f"{path}{key}"
+        if key not in names:
+            raise ConfigError(f"{where}: unknown key (known: {', '.join(sorted(names))})")
+        field_type = hints[key]
+        if _is_dataclass_type(field_type) and isinstance(value, dict):
+            changes[key] = merge(getattr(base, key), value, where + ".")
+        else:
+            changes[key] = _coerce(value, field_type, where)
+    try:
+        return dataclasses.replace(base, **changes)
+    except ValueError as err:
+        raise ConfigError(f"{path}{err}") from None
+
+
+def to_dict(config: Any) -> dict[str, Any]:
+    """Plain nested dict of a config (tuples as lists), e.g. for YAML dumps."""
+
+    def plain(value: Any) -> Any:
+        if isinstance(value, tuple):
+            return [plain(v) for v in value]
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        return value
+
+    return plain(dataclasses.asdict(config))
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Split ``a.b.c=value`` into the dotted key and a YAML-parsed value."""
+    if "=" not in text:
+        raise ConfigError(f"override {text!r}: expected key=value")
+    key, raw = text.split("=", 1)
+    if not key:
+        raise ConfigError(f"override {text!r}: empty key")
+    return key.strip(), yaml.safe_load(raw) if raw else ""
+
+
+def _nest(key: str, value: Any) -> dict[str, Any]:
+    out: Any = value
+    for part in reversed(key.split(".")):
+        out = {part: out}
+    return out
+
+
+def apply_overrides(config: Any, overrides: dict[str, Any] | list[str]) -> Any:
+    """Apply dotted overrides (``{"crowd.count": 25}`` or ``["crowd.count=25"]``)."""
+    items = dict(parse_override(o) for o in overrides) if isinstance(overrides, list) else overrides
+    for key, value in items.items():
+        try:
+            config = merge(config, _nest(key, value))
+        except ConfigError as err:
+            raise ConfigError(f"override {key}={value!r}: {err}") from None
+    return config
+
+

@@ -1,0 +1,203 @@
+"""The MuJoCo-free logic of one navigation episode.
+
+:class:`NavCore` turns a scan and the robot state into the observation, turns a
+raw action into a jerk command through the action layer (region → reference
+points → MPC), and scores the step (reward terms and :class:`Outcome`). The
+composer task (:mod:`mjnav.tasks.nav`) only moves numbers between this and
+``physics``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import math
+
+import numpy as np
+
+from mjnav.control.action import map_action
+from mjnav.control.mpc import Mpc
+from mjnav.geometry.raycast import beam_angles
+from mjnav.geometry.region import Region, compute_region
+from mjnav.tasks import observation as obs_lib
+from mjnav.tasks import reward as reward_lib
+
+__all__ = ["NavCore", "Outcome", "StepRecord", "sigmoid"]
+
+
+class Outcome(enum.Enum):
+    """How an episode stands; decides discount, termination and metrics."""
+
+    RUNNING = "running"
+    SUCCESS = "success"
+    COLLISION = "collision"
+    TIMEOUT = "timeout"
+
+    @property
+    def terminal(self) -> bool:
+        """Success or collision: the episode ends with discount 0."""
+        return self in (Outcome.SUCCESS, Outcome.COLLISION)
+
+    @property
+    def done(self) -> bool:
+        """Any outcome but running ends the episode."""
+        return self is not Outcome.RUNNING
+
+
+def sigmoid(x: np.ndarray) -> np.ndarray:
+    """Logistic function, elementwise, numerically safe for large |x|."""
+    return 0.5 * (1.0 + np.tanh(0.5 * np.asarray(x, dtype=np.float64)))
+
+
+@dataclasses.dataclass
+class StepRecord:
+    """What the last control step decided (for info, logging and rendering).
+
+    Positions are in the world frame, metres.
+    """
+
+    q_s: np.ndarray
+    q_l: np.ndarray
+    q_l_target: np.ndarray
+    predicted: np.ndarray
+    polygon: np.ndarray
+    plan_ok: bool
+    fallback: str | None
+    solve_time_s: float
+    region_ok: bool
+
+
+class NavCore:
+    """Observation, action layer, reward and outcome of one environment."""
+
+    def __init__(self, config) -> None:
+        """Build the action layer for a :class:`mjnav.config.TaskConfig`."""
+        self.config = config
+        self._inflation = config.region.inflation
+        self._angles = beam_angles(config.lidar.beams)
+        self._mpc = Mpc(config.mpc)
+        self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points)
+        self.counters = {"region_failures": 0, "fallbacks": 0, "steps": 0}
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, goal: np.ndarray, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray) -> np.ndarray:
+        """Start an episode; returns the first (stacked) observation."""
+        self.goal = np.asarray(goal, dtype=np.float64).copy()
+        self.steps = 0
+        self.outcome = Outcome.RUNNING
+        self._mpc.reset()
+        self._plan: obs_lib.Plan | None = None
+        self._prev = {"q_s": None, "q_l": None, "plan_ok": False, "distance": None, "velocity": velocity.copy()}
+        self.record: StepRecord | None = None
+        self.region = self._region(scan)
+        polygon, state = self._frame(position, velocity)
+        return self._stack.reset(polygon, state)
+
+    def _region(self, scan: np.ndarray) -> Region:
+        region = compute_region(scan, self._angles, self.config.region)
+        if not region.success:
+            self.counters["region_failures"] += 1
+        return region
+
+    def _frame(self, position: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        polygon = obs_lib.polygon_block(self.region.boundary, self._inflation)
+        state = obs_lib.state_block(
+            position, velocity, self.goal, self.region.success, self._plan, self._inflation,
+            self.config.observation.angle,
+        )
+        return polygon, state
+
+    # ------------------------------------------------------------------ action
+    def plan(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
+        """Map a raw 4-value action to the jerk to apply over the next period (m/s³).
+
+        Raises:
+            ValueError: If the action has the wrong shape or a non-finite value.
+        """
+        action = np.asarray(action, dtype=np.float64).reshape(-1)
+        if action.shape != (4,) or not np.all(np.isfinite(action)):
+            raise ValueError(f"action must be 4 finite values, got {action!r}")
+        goal_rel = self.goal - position
+        points = map_action(sigmoid(action), self.region, velocity, accel, goal_rel, self.config.action)
+        polygon = self.region.vertices if self.region.success else None
+        state = (np.zeros(2), velocity, accel)
+        result = self._mpc.solve(state, points.q_s, points.q_l_target, polygon, points.goal_inside)
+        plan_ok = result.fallback is None
+        self.counters["fallbacks"] += int(not plan_ok)
+        self._remember(points, result, position, plan_ok)
+        return np.asarray(result.u0, dtype=np.float64)
+
+    def _remember(self, points, result, position: np.ndarray, plan_ok: bool) -> None:
+        q1, qn = result.positions[0], result.positions[-1]
+        self._pending = {
+            "plan": obs_lib.Plan(points.q_s, points.q_l, q1, qn, position + q1, position + qn) if plan_ok else None,
+            "q_s": position + points.q_s,
+            "q_l": position + points.q_l,
+            "q1": position + q1,
+            "qn": position + qn,
+            "plan_ok": plan_ok,
+        }
+        polygon = position + self.region.vertices if self.region.success else position + self.region.boundary_xy
+        self.record = StepRecord(
+            q_s=position + points.q_s,
+            q_l=position + points.q_l,
+            q_l_target=position + points.q_l_target,
+            predicted=position + result.positions,
+            polygon=polygon,
+            plan_ok=plan_ok,
+            fallback=result.fallback,
+            solve_time_s=result.solve_time_s,
+            region_ok=bool(self.region.success),
+        )
+
+    # ------------------------------------------------------------------ scoring
+    def finish_step(
+        self, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray, contact: bool
+    ) -> tuple[np.ndarray, float, dict[str, float]]:
+        """Score the step that just ran and build the next observation.
+
+        Args:
+            position: Robot position after the step, metres.
+            velocity: Robot velocity after the step, m/s.
+            scan: LiDAR ranges after the step, metres.
+            contact: A MuJoCo contact between the robot and the world happened.
+
+        Returns:
+            (observation, reward, weighted reward terms).
+        """
+        self.steps += 1
+        self.counters["steps"] += 1
+        pending, prev = self._pending, self._prev
+        distance = math.hypot(*(self.goal - position))
+        min_scan = max(float(np.min(scan)) - self._inflation, 0.0)
+        collision = contact if self.config.collision == "contact" else min_scan <= 0.0
+        success = distance < self.config.reward.goal_tolerance and not collision
+        self.outcome = self._outcome(success, collision)
+        inputs = reward_lib.RewardInputs(
+            success=success, collision=collision, min_scan=min_scan, distance=distance,
+            prev_distance=prev["distance"], plan_ok=pending["plan_ok"], prev_plan_ok=prev["plan_ok"],
+            q_s=pending["q_s"], q_l=pending["q_l"], q1=pending["q1"], qn=pending["qn"],
+            prev_q_s=prev["q_s"], prev_q_l=prev["q_l"], velocity=velocity, prev_velocity=prev["velocity"],
+            control_period=self.config.timing.control_period,
+        )
+        reward, terms = reward_lib.total(inputs, self.config.reward)
+        self._plan = pending["plan"]
+        self._prev = {"q_s": pending["q_s"], "q_l": pending["q_l"], "plan_ok": pending["plan_ok"],
+                      "distance": distance, "velocity": velocity.copy()}
+        self.region = self._region(scan)
+        polygon, state = self._frame(position, velocity)
+        return self._stack.push(polygon, state), reward, terms
+
+    def _outcome(self, success: bool, collision: bool) -> Outcome:
+        if collision:
+            return Outcome.COLLISION
+        if success:
+            return Outcome.SUCCESS
+        if self.steps >= self.config.timing.episode_steps:
+            return Outcome.TIMEOUT
+        return Outcome.RUNNING
+
+    @property
+    def observation_size(self) -> int:
+        """Length of the stacked observation."""
+        return obs_lib.observation_size(self.config.observation.frames, self.config.region.num_points)

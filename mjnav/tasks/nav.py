@@ -1,0 +1,117 @@
+"""``CrowdNavTask``: the dm_control composer task for every stage.
+
+One control step (``timing.control_period``, 0.1 s) is: the previous step's scan
+and free-space polygon → the action (4 raw values, squashed by a sigmoid here)
+→ reference points → MPC jerk → the robot tracks it over the physics substeps
+while the pedestrians move → scan, outcome, reward and the next observation.
+
+Stages differ only by their :class:`mjnav.config.TaskConfig`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control import composer
+from dm_control.composer.observation import observable
+from dm_env import specs
+
+from mjnav.sim import NavSim
+from mjnav.tasks.core import NavCore, Outcome
+
+__all__ = ["CrowdNavTask"]
+
+
+class CrowdNavTask(composer.Task):
+    """Reach the goal through static obstacles and a crowd, acting through convex MPC."""
+
+    def __init__(self, config) -> None:
+        """Build the world once (fixed slots) for a :class:`mjnav.config.TaskConfig`."""
+        self.config = config
+        self.sim = NavSim(config)
+        self.core = NavCore(config)
+        self.set_timesteps(config.timing.control_period, config.timing.physics_timestep)
+        self._obs = np.zeros(self.core.observation_size, dtype=np.float32)
+        self._reward = 0.0
+        self.terms: dict[str, float] = {}
+        self.next_episode_seed: int | None = None
+        self.episode_seed: int | None = None
+        self.layout = None
+        self._observable = observable.Generic(lambda physics: self._obs)
+        self._observable.enabled = True
+
+    @property
+    def root_entity(self):
+        """The arena, with the robot and the crowd attached."""
+        return self.sim.root_entity
+
+    @property
+    def task_observables(self):
+        """One observable, ``observation`` (spec §6, float32)."""
+        return {"observation": self._observable}
+
+    def action_spec(self, physics) -> specs.Array:
+        """Four raw (pre-sigmoid) values: α_s, β_s, α_l, β_l."""
+        del physics
+        return specs.Array(shape=(4,), dtype=np.float32, name="alpha_s,beta_s,alpha_l,beta_l")
+
+    def get_reward_spec(self) -> specs.Array:
+        """A float64 scalar."""
+        return specs.Array(shape=(), dtype=np.float64, name="reward")
+
+    # ------------------------------------------------------------------ episode
+    def initialize_episode(self, physics, random_state: np.random.RandomState) -> None:
+        """Draw the episode seed, place everything by binding and compute the first observation."""
+        seed = self.next_episode_seed
+        self.next_episode_seed = None
+        if seed is None:
+            seed = int(random_state.randint(0, 2**31 - 1))
+        self.episode_seed = seed
+        self.rng = np.random.default_rng(seed)
+        self.layout = self.sim.initialize_episode(physics, self.rng)
+        p, v, _ = self.sim.robot_state(physics)
+        scan = self.sim.scan(physics, self.rng)
+        self._obs[:] = self.core.reset(self.layout.goal, p, v, scan)
+        self._reward = 0.0
+        self.terms = {}
+
+    def before_step(self, physics, action, random_state) -> None:
+        """Turn the action into a jerk command for the coming control period."""
+        del random_state
+        p, v, a = self.sim.robot_state(physics)
+        jerk = self.core.plan(action, p, v, a)
+        self.sim.apply_command(physics, jerk)
+
+    def before_substep(self, physics, action, random_state) -> None:
+        """Move the pedestrians and apply the tracking force."""
+        del action, random_state
+        self.sim.before_substep(physics)
+
+    def after_step(self, physics, random_state) -> None:
+        """Scan, score the step and build the next observation."""
+        del random_state
+        p, v, _ = self.sim.robot_state(physics)
+        scan = self.sim.scan(physics, self.rng)
+        contact, self.contact_kind = self.sim.robot_in_collision(physics)
+        obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact)
+        self._obs[:] = obs
+
+    # ------------------------------------------------------------------ scoring
+    @property
+    def outcome(self) -> Outcome:
+        """The episode's current :class:`Outcome`."""
+        return self.core.outcome
+
+    def get_reward(self, physics) -> float:
+        """Σ weight·term of the last step (spec §7)."""
+        del physics
+        return self._reward
+
+    def get_discount(self, physics) -> float:
+        """0 on success or collision, 1 otherwise (a timeout is a truncation)."""
+        del physics
+        return 0.0 if self.core.outcome.terminal else 1.0
+
+    def should_terminate_episode(self, physics) -> bool:
+        """Ends on success, collision or timeout."""
+        del physics
+        return self.core.outcome.done

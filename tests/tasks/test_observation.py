@@ -1,0 +1,68 @@
+"""Observation layout against spec §6 on hand-built frames."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mjnav.tasks import observation as O
+
+
+def _boundary(r: float = 2.0) -> np.ndarray:
+    theta = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    return np.stack([np.full(60, r), theta], axis=1)
+
+
+def test_sizes() -> None:
+    """A frame is 120 + 13 = 133 values and the 3-frame stack is 399."""
+    assert O.observation_size() == 399
+    assert O.polygon_block(_boundary(), 0.325).shape == (120,)
+
+
+def test_polygon_block_encoding() -> None:
+    """r̂ = clip((r+R)/10, 0, 1) and θ̂ = θ/2π, interleaved."""
+    b = _boundary(2.0)
+    b[3, 0] = 20.0
+    block = O.polygon_block(b, 0.325)
+    assert block[0] == pytest.approx(0.2325)
+    assert block[6] == 1.0
+    assert block[3] == pytest.approx(b[1, 1] / (2 * np.pi))
+
+
+def test_state_block_at_reset() -> None:
+    """At reset the point terms are 0 with distances R/10 and the angle uses the velocity heading."""
+    s = O.state_block(np.zeros(2), np.array([1.0, 0.0]), np.array([0.0, 8.0]), True, None, 0.325)
+    assert s[0] == pytest.approx(0.5)
+    assert s[1] == pytest.approx(8.0 / 40)
+    assert list(s[2:5]) == [0.4, 0.0, 1.0]
+    assert list(s[5:7]) == [0.0, 0.0] and list(s[9:11]) == [0.0, 0.0]
+    assert s[7] == s[8] == s[11] == s[12] == pytest.approx(0.0325)
+
+
+def test_state_block_with_plan() -> None:
+    """Point terms are polar angles/π and (distance + R)/10; dθ uses the MPC direction."""
+    plan = O.Plan(q_s=np.array([0.0, 1.0]), q_l=np.array([-2.0, 0.0]), q1=np.array([1.0, 0.0]),
+                  qn=np.array([3.0, 0.0]), q1_world=np.array([1.0, 0.0]), qn_world=np.array([3.0, 0.0]))
+    s = O.state_block(np.zeros(2), np.zeros(2), np.array([1.0, 5.0]), False, plan, 0.325)
+    assert s[0] == pytest.approx(0.5)  # MPC direction +x, Q*_1→goal +y
+    assert s[4] == 0.0
+    assert s[5] == pytest.approx(0.5) and s[6] == pytest.approx(1.0)
+    assert s[7] == pytest.approx(0.1325) and s[8] == pytest.approx(0.2325)
+    assert s[9] == 0.0 and s[10] == 0.0
+    assert s[11] == pytest.approx(0.1325) and s[12] == pytest.approx(0.3325)
+    paper = O.state_block(np.zeros(2), np.array([0.0, -1.0]), np.array([1.0, 0.0]), True, plan, 0.325, "velocity")
+    assert paper[0] == pytest.approx(0.5)
+
+
+def test_stack_order_oldest_first() -> None:
+    """The stack is [3 polygon blocks, 3 state blocks], oldest first, reset fills every slot."""
+    stack = O.FrameStack(3, 60)
+    poly = [np.full(120, k, dtype=float) for k in range(3)]
+    state = [np.full(13, 10 + k, dtype=float) for k in range(3)]
+    obs = stack.reset(poly[0], state[0])
+    assert obs.dtype == np.float32 and obs.shape == (399,)
+    assert np.all(obs[:360] == 0) and np.all(obs[360:] == 10)
+    stack.push(poly[1], state[1])
+    obs = stack.push(poly[2], state[2])
+    assert [obs[k * 120] for k in range(3)] == [0, 1, 2]
+    assert [obs[360 + k * 13] for k in range(3)] == [10, 11, 12]
