@@ -112,6 +112,7 @@ class CrowdConfig:
         speed: Speed range [min, max], m/s.
         model: Motion model, ``random_walk`` (paper) or ``social_force``.
         yaw_rate: Random-walk heading rate bound, rad/s (uniform in ±yaw_rate).
+        yaw_interval: Random walk: the yaw rate is re-drawn every this many seconds (proposal).
         height: Cylinder height, metres.
         relaxation_time: Social force: time to reach the desired velocity, s.
         repulsion_strength: Social force: pedestrian repulsion magnitude, m/s².
@@ -120,6 +121,7 @@ class CrowdConfig:
         wall_range: Social force: wall/obstacle repulsion decay length, metres.
         robot_strength: Social force: robot repulsion magnitude, m/s².
         goal_tolerance: Social force: distance at which a new goal is drawn, metres.
+        max_speed_factor: Social force: speed cap as a multiple of the desired speed.
     """
 
     count: int = 0
@@ -128,14 +130,16 @@ class CrowdConfig:
     speed: tuple[float, float] = (0.3, 0.3)
     model: Literal["random_walk", "social_force"] = "random_walk"
     yaw_rate: float = math.pi / 6
+    yaw_interval: float = 0.1
     height: float = 1.7
     relaxation_time: float = 0.5
-    repulsion_strength: float = 2.1
+    repulsion_strength: float = 10.0
     repulsion_range: float = 0.3
     wall_strength: float = 10.0
     wall_range: float = 0.2
-    robot_strength: float = 2.1
+    robot_strength: float = 10.0
     goal_tolerance: float = 0.5
+    max_speed_factor: float = 1.3
 
     def __post_init__(self) -> None:
         _check(self.count >= 0, "count", "must be >= 0")
@@ -143,6 +147,8 @@ class CrowdConfig:
         _check_range(self.radius, "radius", low=0.01)
         _check_range(self.speed, "speed")
         _check(self.yaw_rate >= 0, "yaw_rate", "must be >= 0")
+        _check(self.yaw_interval >= 0, "yaw_interval", "must be >= 0")
+        _check(self.max_speed_factor >= 1, "max_speed_factor", "must be >= 1")
         _check(self.height > 0, "height", "must be > 0")
         _check(self.relaxation_time > 0, "relaxation_time", "must be > 0")
 
