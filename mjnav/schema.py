@@ -74,7 +74,7 @@ class ObstacleConfig:
 
     Attributes:
         count: Obstacles per episode.
-        slots: Compiled obstacle slots (>= count); unused slots are parked.
+        slots: Compiled obstacle slots: 0 means ``count``; otherwise >= count, unused slots parked.
         circumradius: Radius of the circle the vertices lie on, metres.
         min_area: Smallest accepted polygon area (rejects slivers), m².
         max_area: Largest accepted polygon area, m².
@@ -84,7 +84,7 @@ class ObstacleConfig:
     """
 
     count: int = 0
-    slots: int = 10
+    slots: int = 0
     circumradius: float = 1.0
     min_area: float = 0.3
     max_area: float = 2.0
@@ -94,11 +94,16 @@ class ObstacleConfig:
 
     def __post_init__(self) -> None:
         _check(self.count >= 0, "count", "must be >= 0")
-        _check(self.slots >= self.count, "slots", f"must be >= count ({self.count})")
+        _check(self.slots == 0 or self.slots >= self.count, "slots", "must be 0 (= count) or >= count")
         _check(self.circumradius > 0, "circumradius", "must be > 0")
         _check(0 <= self.min_area < self.max_area, "min_area", "needs 0 <= min_area < max_area")
         _check(self.bank_size >= 1, "bank_size", "must be >= 1")
         _check(self.height > 0, "height", "must be > 0")
+
+    @property
+    def num_slots(self) -> int:
+        """Compiled obstacle slots (``slots`` or ``count`` when 0)."""
+        return max(self.slots, self.count)
 
 
 @dataclasses.dataclass(frozen=True)

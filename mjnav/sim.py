@@ -1,0 +1,303 @@
+"""``NavSim``: the MuJoCo world of one task, compiled once and re-populated every episode.
+
+NavSim owns the entities (arena with obstacle slots, robot, pedestrian slots), the pedestrian
+motion model and the LiDAR backends, and moves numbers between them and a ``physics``
+(``dm_control.mjcf.Physics``, or the composer physics of a Task whose ``root_entity`` is
+:attr:`NavSim.root_entity`). Nothing is recompiled after the first build: a new episode writes
+poses, mesh ids and radii into the compiled model and data.
+
+Per control period (``timing.control_period``, ``timing.substeps`` physics steps):
+
+1. :meth:`apply_command` sets the robot's triple-integrator reference from its state and jerk;
+2. before every physics step, :meth:`before_substep` moves the pedestrians by one physics
+   timestep (mocap positions, so their motion is smooth) and writes the tracking force;
+3. after the period, :meth:`scan` (once) and :meth:`robot_in_collision` read the world.
+
+:meth:`control_step` runs 1-3 without composer. Randomness: the generator given to
+:meth:`initialize_episode` draws the layout and then seeds the crowd's own stream (so the crowd
+does not depend on how many noisy scans are taken); noise uses the generator given to
+:meth:`scan`. The same seed gives bit-identical worlds, trajectories and scans.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+
+from mjnav.entities.arena import NavArena
+from mjnav.entities.crowd import Crowd
+from mjnav.entities.robot import OmniRobot, integrator_value
+from mjnav.geometry.raycast import add_noise, polygon_segments, wall_segments
+from mjnav.sensors.lidar import AnalyticLidar, MujocoLidar
+from mjnav.world.crowd import make_pedestrian_model
+from mjnav.world.layout import Layout, sample_layout
+from mjnav.world.shapes import make_shape_bank
+
+if TYPE_CHECKING:
+    from mjnav.config import TaskConfig
+
+__all__ = ["COLLISION_KINDS", "NavSim"]
+
+#: Kinds reported by :meth:`NavSim.robot_in_collision` (index = code in the geom lookup table).
+COLLISION_KINDS = (None, "wall", "obstacle", "pedestrian")
+
+
+class NavSim:
+    """Arena + robot + crowd of one :class:`~mjnav.config.TaskConfig`, built once."""
+
+    def __init__(self, config: TaskConfig, integrator: str = "RK4", lidar_method: str = "multiray",
+                 rangefinders: bool = True) -> None:
+        """Builds the entities (not compiled yet).
+
+        Args:
+            config: A ``TaskConfig`` (uses arena, obstacles, crowd, robot, lidar, timing, layout and
+                ``region.inflation``).
+            integrator: MuJoCo integrator; ``RK4`` tracks the triple integrator to ~0.03 mm per
+                period, ``Euler`` to mm (see :mod:`mjnav.entities.robot`).
+            lidar_method: Evaluation method of the ``mujoco`` LiDAR backend (``multiray``, or
+                ``sensor``, which needs the rangefinders).
+            rangefinders: Compile the robot's 360 rangefinder sites and sensors (spec §2). False
+                saves ~40% of each RK4 step; the ``mujoco`` backend then casts with mj_multiRay.
+        """
+        _check_heights(config)
+        self.config = config
+        self.bank = make_shape_bank(config.obstacles)
+        self.arena = NavArena(config.arena, config.obstacles, self.bank)
+        if lidar_method == "sensor" and not rangefinders:
+            raise ValueError("lidar_method='sensor' needs the rangefinders")
+        self.robot = OmniRobot(config.robot, config.lidar, rangefinders=rangefinders)
+        self.arena.attach(self.robot)
+        self.crowd = Crowd(config.crowd)
+        self.crowd.attach_to(self.arena)
+        option = self.arena.mjcf_model.option
+        option.timestep = config.timing.physics_timestep
+        integrator_value(integrator)  # validates the name
+        option.integrator = integrator
+        option.noslip_iterations = 0
+        self.integrator = integrator
+        self.pedestrians = make_pedestrian_model(config.crowd)
+        self.lidars = {"analytic": AnalyticLidar(config.lidar),
+                       "mujoco": MujocoLidar(config.lidar, self.robot, lidar_method)}
+        self.lidar = self.lidars[config.lidar.backend]
+        self._dt = config.timing.physics_timestep
+        self._model = None
+        self._segments = wall_segments(config.arena.size)
+        self._radii = np.zeros(0)
+        self._num_peds = 0
+        self._substep = 0
+        self._sticky = 0
+        self.layout: Layout | None = None
+
+    # ------------------------------------------------------------------ building
+    @property
+    def root_entity(self) -> NavArena:
+        """The arena (robot and crowd attached): the composer root entity."""
+        return self.arena
+
+    @property
+    def mjcf_model(self) -> mjcf.RootElement:
+        """The whole scene's MJCF."""
+        return self.arena.mjcf_model
+
+    def make_physics(self) -> mjcf.Physics:
+        """Compiles the scene (once per environment)."""
+        return mjcf.Physics.from_mjcf_model(self.arena.mjcf_model)
+
+    def _bind(self, physics: mjcf.Physics) -> None:
+        """Caches ids and index arrays for ``physics`` (once per compiled model)."""
+        model = physics.model.ptr
+        if self._model is model:
+            return
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)  # scans run on demand
+        self._qpos = _as_index(physics.bind(self.robot.joints).qposadr)
+        self._qvel = _as_index(physics.bind(self.robot.joints).dofadr)
+        self._robot_geom = self.robot.geom_id(physics)
+        kind = np.zeros(model.ngeom, dtype=np.int64)
+        kind[physics.bind(self.arena.walls).element_id] = 1
+        if self.arena.obstacle_slots:
+            kind[physics.bind(self.arena.obstacle_slots).element_id] = 2
+        kind[self.crowd.geom_ids(physics)] = 3
+        self._geom_kind = kind
+        self._mocap = self.crowd.mocap_ids(physics)
+        self._model = model
+
+    # ------------------------------------------------------------------ episode
+    def initialize_episode(self, physics: mjcf.Physics, rng: np.random.Generator) -> Layout:
+        """Samples a layout and places everything by binding (no recompiling).
+
+        Args:
+            physics: The compiled physics (its data is reset here).
+            rng: Episode generator: draws the layout, then seeds the crowd's stream.
+
+        Returns:
+            The episode's :class:`~mjnav.world.layout.Layout`.
+        """
+        self._bind(physics)
+        cfg = self.config
+        model, data = physics.model.ptr, physics.data.ptr
+        mujoco.mj_resetData(model, data)
+        layout = sample_layout(
+            cfg.arena, cfg.obstacles, cfg.crowd, cfg.layout, cfg.lidar, self.bank, rng,
+            inflation=cfg.region.inflation, robot_radius=cfg.robot.radius,
+        )
+        crowd_rng = np.random.default_rng(rng.integers(0, 2**63))
+        self.arena.set_obstacles(physics, layout.obstacle_shapes, layout.obstacle_poses)
+        self.crowd.set_radii(physics, layout.ped_radii)
+        self._num_peds = len(layout.ped_radii)
+        self._radii = np.ascontiguousarray(layout.ped_radii, dtype=np.float64)
+        if self._num_peds:
+            hx, hy = 0.5 * cfg.arena.size[0], 0.5 * cfg.arena.size[1]
+            self.pedestrians.reset(
+                layout.ped_positions, layout.ped_radii, layout.ped_speeds, layout.ped_headings,
+                bounds=(-hx, -hy, hx, hy), obstacles=list(layout.obstacle_polygons), rng=crowd_rng,
+            )
+            self._ped_index = _as_index(self._mocap[: self._num_peds])
+            data.mocap_pos[self._ped_index, :2] = self.pedestrians.positions
+        self.robot.set_state(physics, layout.start)
+        self.robot.reset_reference(layout.start)
+        data.ctrl[:] = 0.0
+        mujoco.mj_forward(model, data)
+        polygons = self.arena.obstacle_polygons(physics, cfg.lidar.height)
+        self._segments = np.vstack([wall_segments(cfg.arena.size), polygon_segments(polygons)])
+        self._substep, self._sticky = 0, 0
+        self.layout = layout
+        return layout
+
+    # ------------------------------------------------------------------ stepping
+    def apply_command(self, physics: mjcf.Physics, jerk: np.ndarray) -> None:
+        """Starts a control period: reference from the robot state under ``jerk`` (2,), m/s³."""
+        p, v, a = self.robot_state(physics)
+        self.robot.set_reference(p, v, a, jerk)
+        self._substep, self._sticky = 0, 0
+
+    def before_substep(self, physics: mjcf.Physics) -> None:
+        """Moves the pedestrians by one physics timestep, then writes the tracking force."""
+        data = physics.data.ptr
+        if self._substep and data.ncon and not self._sticky:
+            self._sticky = self._contact_kind(data)
+        if self._num_peds:
+            self.pedestrians.step(self._dt, robot_position=data.qpos[self._qpos],
+                                  robot_radius=self.config.robot.radius)
+            data.mocap_pos[self._ped_index, :2] = self.pedestrians.positions
+        self.robot.apply_tracking_force(physics)
+        self._substep += 1
+
+    def control_step(self, physics: mjcf.Physics, jerk: np.ndarray) -> None:
+        """One control period without composer: command, substeps, then :meth:`sync`.
+
+        The sync (``mj_step1``, as composer's legacy stepping) makes contacts and kinematics
+        describe the final state for :meth:`scan` and :meth:`robot_in_collision`.
+
+        Args:
+            physics: The physics.
+            jerk: (2,) jerk for the period, m/s³.
+        """
+        model, data = physics.model.ptr, physics.data.ptr
+        self.apply_command(physics, jerk)
+        for _ in range(self.config.timing.substeps):
+            self.before_substep(physics)
+            mujoco.mj_step(model, data)
+        mujoco.mj_step1(model, data)
+
+    def sync(self, physics: mjcf.Physics) -> None:
+        """Recomputes position/velocity quantities (kinematics, contacts) for the current state.
+
+        Composer's default ``legacy_step=True`` already does this after every substep; with
+        ``legacy_step=False`` (cheaper) call it once per control period, before :meth:`scan` and
+        :meth:`robot_in_collision`. It never changes the state.
+        """
+        mujoco.mj_step1(physics.model.ptr, physics.data.ptr)
+
+    # ------------------------------------------------------------------ reading
+    def robot_state(self, physics: mjcf.Physics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(p, v, a), each (2,): MuJoCo position and velocity, reference acceleration (MPC state)."""
+        data = physics.data.ptr
+        return data.qpos[self._qpos].copy(), data.qvel[self._qvel].copy(), self.robot.acceleration
+
+    def pedestrian_circles(self) -> np.ndarray:
+        """(P, 3) ``[x, y, r]`` of the active pedestrians, metres."""
+        if not self._num_peds:
+            return np.zeros((0, 3))
+        return np.ascontiguousarray(np.column_stack([self.pedestrians.positions, self._radii]))
+
+    @property
+    def segments(self) -> np.ndarray:
+        """(S, 4) wall faces and placed obstacle edges (as compiled) at LiDAR height, metres."""
+        return self._segments
+
+    def scan(self, physics: mjcf.Physics, rng: np.random.Generator | None = None, noise: bool = True,
+             backend: str | None = None) -> np.ndarray:
+        """The LiDAR scan from the robot centre (spec §2).
+
+        Args:
+            physics: The physics (synchronised after stepping, as composer and :meth:`control_step` do).
+            rng: Noise generator (required when ``noise``).
+            noise: Add N(0, noise_std²) per beam, clipped to [0, max_range].
+            backend: ``analytic`` or ``mujoco``; default ``config.lidar.backend``.
+
+        Returns:
+            (B,) float64 ranges, metres.
+        """
+        lidar = self.lidar if backend is None else self.lidars[backend]
+        origin = physics.data.ptr.qpos[self._qpos]
+        circles = self.pedestrian_circles() if lidar.name == "analytic" else None
+        ranges = lidar.scan(physics, origin, self._segments, circles)
+        if not noise:
+            return ranges
+        if rng is None:
+            raise ValueError("scan(noise=True) needs a generator")
+        cfg = self.config.lidar
+        return add_noise(ranges, cfg.noise_std, cfg.max_range, rng)
+
+    def robot_in_collision(self, physics: mjcf.Physics) -> tuple[bool, str | None]:
+        """Whether the robot touched a wall, obstacle or pedestrian during the last period.
+
+        Uses MuJoCo contacts (only robot pairs can collide): those current after each substep
+        of the period, including the final state.
+
+        Returns:
+            ``(collided, kind)`` with kind ``wall``, ``obstacle``, ``pedestrian`` or None.
+        """
+        data = physics.data.ptr
+        code = self._sticky or (self._contact_kind(data) if data.ncon else 0)
+        return bool(code), COLLISION_KINDS[code]
+
+    def _contact_kind(self, data: mujoco.MjData) -> int:
+        """Kind code of the deepest current robot contact (0 if none)."""
+        n = data.ncon
+        if not n:
+            return 0
+        contacts = data.contact
+        pairs = contacts.geom[:n]
+        kinds = self._geom_kind[pairs].max(axis=1)
+        hits = (pairs == self._robot_geom).any(axis=1) & (kinds > 0)
+        if not hits.any():
+            return 0
+        dist = np.where(hits, contacts.dist[:n], np.inf)
+        return int(kinds[int(np.argmin(dist))])
+
+
+def _as_index(ids: np.ndarray) -> slice | np.ndarray:
+    """A slice when the ids are consecutive (faster numpy access), else an int array."""
+    ids = np.asarray(ids, dtype=np.int64).reshape(-1)
+    if ids.size and np.array_equal(ids, np.arange(ids[0], ids[0] + ids.size)):
+        return slice(int(ids[0]), int(ids[0]) + ids.size)
+    return ids
+
+
+def _check_heights(config: TaskConfig) -> None:
+    """LiDAR rays must hit walls, obstacles and pedestrians; the robot must clear the floor."""
+    h = config.lidar.height
+    limits = {"arena.wall_height": config.arena.wall_height}
+    if config.obstacles.num_slots:
+        limits["obstacles.height"] = config.obstacles.height
+    if config.crowd.num_slots:
+        limits["crowd.height"] = config.crowd.height
+    for name, top in limits.items():
+        if not 0.0 < h < top:
+            raise ValueError(f"lidar.height {h} m must lie strictly between the floor and {name} ({top} m)")
+    if config.robot.height / 2 >= h:
+        raise ValueError(f"robot.height/2 ({config.robot.height / 2} m) must be below lidar.height ({h} m)")

@@ -1,0 +1,103 @@
+"""OmniRobot: degrees of freedom, LiDAR sites and free-space tracking of the triple integrator."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from dm_control import mjcf
+
+from mjnav.entities.arena import NavArena
+from mjnav.entities.robot import OmniRobot, integrator_value
+from mjnav.schema import ArenaConfig, LidarConfig, ObstacleConfig, RobotConfig
+
+ROBOT = RobotConfig()
+PERIOD, SUBSTEPS = 0.1, 5
+
+
+def _free_space(integrator: str = "RK4", config: RobotConfig = ROBOT):
+    arena = NavArena(ArenaConfig(size=(100.0, 100.0)), ObstacleConfig(count=0, slots=0))
+    robot = OmniRobot(config, LidarConfig())
+    arena.attach(robot)
+    arena.mjcf_model.option.timestep = PERIOD / SUBSTEPS
+    arena.mjcf_model.option.integrator = integrator
+    return robot, mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+
+
+def _tracking_errors(integrator: str, trials: int = 100) -> tuple[np.ndarray, np.ndarray]:
+    """Max |position| (m) and |velocity| (m/s) errors after one period over random states."""
+    robot, physics = _free_space(integrator)
+    model, data = physics.model.ptr, physics.data.ptr
+    rng = np.random.default_rng(0)
+    pos_err, vel_err = [], []
+    for _ in range(trials):
+        p = rng.uniform(-10, 10, 2)
+        v = rng.uniform(-ROBOT.v_max, ROBOT.v_max, 2)
+        a = rng.uniform(-ROBOT.a_max, ROBOT.a_max, 2)
+        j = rng.uniform(-ROBOT.j_max, ROBOT.j_max, 2)
+        mujoco.mj_resetData(model, data)
+        robot.set_state(physics, p, v)
+        robot.set_reference(p, v, a, j)
+        for _ in range(SUBSTEPS):
+            robot.apply_tracking_force(physics)
+            mujoco.mj_step(model, data)
+        t = PERIOD
+        p_pred = p + v * t + a * t**2 / 2 + j * t**3 / 6
+        v_pred = v + a * t + j * t**2 / 2
+        pos, vel = robot.get_state(physics)
+        pos_err.append(np.abs(pos - p_pred).max())
+        vel_err.append(np.abs(vel - v_pred).max())
+        np.testing.assert_allclose(robot.acceleration, a + j * t, atol=1e-12)
+    return np.asarray(pos_err), np.asarray(vel_err)
+
+
+def test_rk4_tracks_triple_integrator_to_hundredths_of_a_millimetre():
+    """RK4: after one period the position matches the triple-integrator prediction to < 0.05 mm."""
+    pos_err, vel_err = _tracking_errors("RK4")
+    assert pos_err.max() * 1e3 < 0.05  # mm; theory: j dt^3 / 12 per substep ~ 0.027 mm
+    assert vel_err.max() < 1e-9
+
+
+def test_euler_tracking_error_is_millimetres():
+    """Semi-implicit Euler misses by ~a dt^2/2 per substep (mm), which is why RK4 is the default."""
+    pos_err, _ = _tracking_errors("Euler", trials=30)
+    assert 1.0 < pos_err.max() * 1e3 < 10.0
+
+
+def test_only_planar_translation():
+    """The robot has exactly two slide dofs (x, y), no rotation or vertical motion, and floats."""
+    robot, physics = _free_space()
+    model = physics.model.ptr
+    assert model.nq == 2 and model.nv == 2
+    assert list(model.jnt_type) == [mujoco.mjtJoint.mjJNT_SLIDE] * 2
+    np.testing.assert_allclose(model.jnt_axis, [[1, 0, 0], [0, 1, 0]])
+    mujoco.mj_forward(model, physics.data.ptr)
+    bottom = physics.data.geom_xpos[robot.geom_id(physics), 2] - ROBOT.height / 2
+    assert bottom > 0 and physics.data.ncon == 0
+    assert physics.model.body_mass[robot.body_id(physics)] == pytest.approx(ROBOT.mass)
+
+
+def test_rangefinder_sites_point_along_beams():
+    """Site i's +z axis is beam i: angle i degrees from +x, counter-clockwise, horizontal."""
+    robot, physics = _free_space()
+    mujoco.mj_forward(physics.model.ptr, physics.data.ptr)
+    zaxes = physics.bind(robot.ray_sites).xmat.reshape(-1, 3, 3)[:, :, 2]
+    angles = np.deg2rad(np.arange(360))
+    np.testing.assert_allclose(zaxes, np.c_[np.cos(angles), np.sin(angles), np.zeros(360)], atol=1e-12)
+    assert [s.name for s in robot.rangefinders[:2]] == ["ray_000", "ray_001"]
+
+
+def test_force_is_clipped_to_actuator_limits():
+    """A huge reference error saturates the motors at force_max."""
+    robot, physics = _free_space()
+    robot.set_reference(np.zeros(2), np.array([100.0, -100.0]), np.zeros(2), np.zeros(2))
+    robot.apply_tracking_force(physics)
+    np.testing.assert_allclose(physics.data.ctrl, [ROBOT.force_max, -ROBOT.force_max])
+    np.testing.assert_allclose(physics.model.actuator_ctrlrange, [[-ROBOT.force_max, ROBOT.force_max]] * 2)
+
+
+def test_integrator_names():
+    """Integrator names map to MuJoCo enums; unknown names fail."""
+    assert integrator_value("RK4") == mujoco.mjtIntegrator.mjINT_RK4
+    with pytest.raises(ValueError):
+        integrator_value("verlet")
