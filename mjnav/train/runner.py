@@ -1,0 +1,346 @@
+"""Build rsl-rl's (unmodified) :class:`~rsl_rl.runners.OnPolicyRunner` from a :class:`TrainConfig`.
+
+rsl-rl 5 specifics used here:
+
+* observation groups: the adapter returns ``TensorDict(policy=...)``; ``obs_groups`` maps both the
+  ``actor`` and ``critic`` sets to ``["policy"]``.
+* models: ``actor``/``critic`` dicts name a class; :class:`~mjnav.train.model.LayerwiseMLPModel`
+  adds per-layer activations (ReLU, ReLU, Hardswish). The actor's ``GaussianDistribution`` uses
+  ``std_type="log"`` with ``init_std = exp(init_log_std)``: a learnable, state-independent log-std.
+* optimizer: ``algorithm.optimizer = "adamw"`` (rsl-rl resolves adam/adamw/sgd/rmsprop);
+  ``schedule = "fixed"`` keeps the authors' constant learning rate.
+* logging: ``logger`` names :class:`ProgressWriter`, a rsl-rl ``LogWriter`` that writes TensorBoard
+  events and prints one progress line per iteration; rsl-rl's own per-iteration block is
+  filtered from stdout unless ``verbose``.
+* iteration count: inside ``learn`` rsl-rl keeps ``current_learning_iteration`` at the last
+  *completed* iteration (what checkpoints store as ``iter``) and starts the next ``learn`` there,
+  repeating one number. Here, between calls, it is the *next* iteration: :func:`learn`,
+  :func:`load_checkpoint` and :func:`save_checkpoint` convert, so chunks and resumed runs number
+  their iterations without repeats.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import re
+import signal
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+import gymnasium as gym
+import torch
+from rsl_rl.runners import OnPolicyRunner
+from rsl_rl.utils.log_writer import LogWriter
+
+from mjnav.envs.vec_env import NavVecEnv
+from mjnav.train.config import TrainConfig
+
+if TYPE_CHECKING:
+    from mjnav.config import TaskConfig
+
+__all__ = [
+    "ProgressWriter",
+    "TaskEnvFactory",
+    "TrainingInterrupted",
+    "build_runner",
+    "checkpoints",
+    "handle_interrupts",
+    "learn",
+    "load_checkpoint",
+    "make_vec_env",
+    "request_stop",
+    "rsl_config",
+    "save_checkpoint",
+]
+
+
+class TrainingInterrupted(Exception):
+    """Raised at the end of an iteration after SIGINT/SIGTERM; the caller saves and exits.
+
+    Attributes:
+        iteration: The last completed iteration.
+    """
+
+    def __init__(self, iteration: int) -> None:
+        """Record the last completed iteration."""
+        super().__init__(f"stopped after iteration {iteration}")
+        self.iteration = iteration
+
+
+_STOP = {"requested": False}
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskEnvFactory:
+    """Picklable ``env_fn(index)`` building the gymnasium env of a task (seeded by the adapter)."""
+
+    task: TaskConfig
+
+    def __call__(self, index: int) -> gym.Env:
+        """Build environment ``index`` (unseeded: the adapter resets it with ``seed + index``)."""
+        from mjnav.envs.gym_env import make_gym_env
+
+        return make_gym_env(self.task)
+
+
+def make_vec_env(
+    task: TaskConfig, train: TrainConfig, seed: int | None = None, num_envs: int | None = None
+) -> NavVecEnv:
+    """The rsl-rl adapter over ``num_envs`` (default ``train.num_envs``) environments of ``task``."""
+    return NavVecEnv(
+        TaskEnvFactory(task),
+        num_envs=num_envs or train.num_envs,
+        seed=train.seed if seed is None else seed,
+        workers=None if train.workers < 0 else min(train.workers, num_envs or train.num_envs),
+        device=train.device,
+        max_episode_length=task.timing.episode_steps,
+        start_method=train.start_method,
+        cfg={"task": task.name},
+    )
+
+
+def rsl_config(train: TrainConfig, label: str = "") -> dict[str, Any]:
+    """The ``OnPolicyRunner`` configuration dictionary of ``train``."""
+    policy = train.policy
+    return {
+        "num_steps_per_env": train.steps_per_env,
+        "save_interval": train.save_interval,
+        "obs_groups": {"actor": ["policy"], "critic": ["policy"]},
+        "check_for_nan": True,
+        "run_name": label,
+        "logger": {
+            "class_name": "mjnav.train.runner:ProgressWriter",
+            "label": label,
+            "total_iterations": train.iterations,
+            "steps_per_env": train.steps_per_env,
+        },
+        "algorithm": {
+            "class_name": "PPO",
+            "num_learning_epochs": train.epochs,
+            "num_mini_batches": train.minibatches,
+            "clip_param": train.clip,
+            "gamma": train.gamma,
+            "lam": train.lam,
+            "value_loss_coef": train.value_loss_coef,
+            "entropy_coef": train.entropy,
+            "learning_rate": train.learning_rate,
+            "max_grad_norm": train.max_grad_norm,
+            "optimizer": train.optimizer,
+            "use_clipped_value_loss": True,
+            "schedule": train.schedule,
+            "desired_kl": train.desired_kl,
+        },
+        "actor": {
+            "class_name": "mjnav.train.model:LayerwiseMLPModel",
+            "hidden_dims": list(policy.actor_hidden_dims),
+            "activation": list(policy.actor_activations),
+            "obs_normalization": policy.obs_normalization,
+            "output_gain": policy.actor_output_gain,
+            "distribution_cfg": {
+                "class_name": "GaussianDistribution",
+                "init_std": math.exp(policy.init_log_std),
+                "std_type": "log",
+            },
+        },
+        "critic": {
+            "class_name": "mjnav.train.model:LayerwiseMLPModel",
+            "hidden_dims": list(policy.critic_hidden_dims),
+            "activation": list(policy.critic_activations),
+            "obs_normalization": policy.obs_normalization,
+        },
+    }
+
+
+def build_runner(
+    env: NavVecEnv, train: TrainConfig, log_dir: str | Path | None, label: str = ""
+) -> OnPolicyRunner:
+    """Seed torch and construct the runner (networks, PPO, storage, logger) on ``train.device``."""
+    torch.manual_seed(train.seed)
+    if train.torch_threads > 0:
+        torch.set_num_threads(train.torch_threads)
+    with contextlib.redirect_stdout(_ModelPrintFilter(sys.stdout, train.verbose)):
+        runner = OnPolicyRunner(
+            env, rsl_config(train, label), None if log_dir is None else str(log_dir), train.device
+        )
+    runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
+    runner.mjnav_verbose = train.verbose  # type: ignore[attr-defined]
+    return runner
+
+
+def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool = False) -> None:
+    """Run ``iterations`` PPO iterations, numbered on from ``runner.current_learning_iteration``.
+
+    Raises:
+        TrainingInterrupted: A stop was requested (see :func:`handle_interrupts`) and honoured after
+            a completed iteration; the weights are not saved yet (:func:`save_checkpoint`).
+    """
+    runner.logger.cfg["logger"]["start_iteration"] = runner.current_learning_iteration
+    try:
+        with contextlib.redirect_stdout(_BlockFilter(sys.stdout, getattr(runner, "mjnav_verbose", False))):
+            runner.learn(iterations, init_at_random_ep_len=random_initial_lengths)
+    except TrainingInterrupted as stop:
+        runner.current_learning_iteration = stop.iteration + 1
+        raise
+    runner.current_learning_iteration += 1
+
+
+def checkpoints(run_dir: str | Path) -> list[Path]:
+    """``model_<iteration>.pt`` files of a run, oldest first."""
+    found = [
+        (int(m.group(1)), p)
+        for p in Path(run_dir).glob("model_*.pt")
+        if (m := re.fullmatch(r"model_(\d+)\.pt", p.name))
+    ]
+    return [p for _, p in sorted(found)]
+
+
+def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool = False) -> None:
+    """Load a checkpoint: everything (resume: iteration counting continues) or only the networks.
+
+    Args:
+        runner: The runner to load into.
+        path: A ``model_<it>.pt`` checkpoint.
+        weights_only: Load actor and critic weights only (``init=``: start a new stage from them).
+    """
+    if weights_only:
+        runner.load(str(path), load_cfg={"actor": True, "critic": True}, map_location=runner.device)
+        return
+    runner.load(str(path), map_location=runner.device)
+    runner.current_learning_iteration += 1
+
+
+def save_checkpoint(runner: OnPolicyRunner, run_dir: str | Path) -> Path:
+    """Save ``model_<last completed iteration>.pt`` into ``run_dir`` (between :func:`learn` calls)."""
+    last = runner.current_learning_iteration - 1
+    path = Path(run_dir) / f"model_{last}.pt"
+    runner.current_learning_iteration = last  # checkpoints store the last completed iteration
+    try:
+        runner.save(str(path))
+    finally:
+        runner.current_learning_iteration = last + 1
+    return path
+
+
+@contextlib.contextmanager
+def handle_interrupts() -> Iterator[None]:
+    """SIGINT/SIGTERM request a stop after the current iteration; a second Ctrl-C aborts at once."""
+
+    def on_signal(signum: int, frame: Any) -> None:
+        if _STOP["requested"] and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        _STOP["requested"] = True
+        print(
+            f"\n{signal.Signals(signum).name}: finishing this iteration and saving a checkpoint "
+            "(Ctrl-C again aborts without saving)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    _STOP["requested"] = False
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        _STOP["requested"] = False
+
+
+def request_stop() -> None:
+    """Ask the running :func:`learn` to stop after its current iteration (as SIGTERM does)."""
+    _STOP["requested"] = True
+
+
+class ProgressWriter(LogWriter):
+    """rsl-rl log writer: TensorBoard events plus one progress line per iteration.
+
+    The line shows env steps/s, collection time (of which stepping the environments), update time,
+    the success rate and mean return of the episodes finished in the iteration, and the ETA.
+    """
+
+    def __init__(
+        self,
+        log_dir: str,
+        label: str = "",
+        total_iterations: int = 0,
+        steps_per_env: int = 1,
+        start_iteration: int = 0,
+    ) -> None:
+        """Open the TensorBoard writer in ``log_dir``."""
+        from torch.utils.tensorboard import SummaryWriter
+
+        self.tb = SummaryWriter(log_dir=log_dir, flush_secs=10)
+        self.label, self.total, self.steps_per_env = label, total_iterations, steps_per_env
+        self.start = start_iteration
+        self.values: dict[str, float] = {}
+        self.elapsed = 0.0
+
+    def add_scalar(self, tag: str, scalar_value: float, global_step: int) -> None:
+        """Write the scalar; after the last per-iteration timing, print the line and honour stops."""
+        self.tb.add_scalar(tag, scalar_value, global_step)
+        self.values[tag] = float(scalar_value)
+        if tag == "Perf/learning_time":
+            print(self.line(global_step), flush=True)
+            self.values = {}
+            if _STOP["requested"]:
+                raise TrainingInterrupted(global_step)
+
+    def line(self, it: int) -> str:
+        """The progress line of iteration ``it``."""
+        v = self.values
+        collect, update = v.get("Perf/collection_time", 0.0), v.get("Perf/learning_time", 0.0)
+        self.elapsed += collect + update
+        done = max(1, it + 1 - self.start)
+        eta = self.elapsed / done * max(0, self.total - it - 1)
+        env = v.get("perf/env_step_ms", 0.0) * self.steps_per_env / 1e3
+        success = f"{v['episode/success']:.2f}" if "episode/success" in v else "  - "
+        ret = f"{v['episode/return']:7.1f}" if "episode/return" in v else "      -"
+        head = f"[{self.label}] " if self.label else ""
+        eta_text = time.strftime("%H:%M:%S", time.gmtime(eta)) if eta < 86400 else f"{eta / 3600:.0f}h"
+        return (
+            f"{head}it {it + 1}/{self.total} | {v.get('Perf/total_fps', 0):5.0f} steps/s"
+            f" | collect {collect:5.2f}s (env {env:5.2f}s) | update {update:5.2f}s"
+            f" | success {success} | return {ret} | ETA {eta_text}"
+        )
+
+    def stop(self) -> None:
+        """Flush and close the TensorBoard writer."""
+        self.tb.close()
+
+
+class _BlockFilter:
+    """stdout proxy dropping rsl-rl's multi-line per-iteration block (unless ``verbose``)."""
+
+    def __init__(self, stream: TextIO, verbose: bool) -> None:
+        self.stream, self.verbose, self._skip_newline = stream, verbose, False
+
+    def write(self, text: str) -> int:
+        if not self.verbose and text.startswith("#" * 20):
+            self._skip_newline = True
+            return len(text)
+        if self._skip_newline and text == "\n":
+            self._skip_newline = False
+            return 1
+        self._skip_newline = False
+        return self.stream.write(text)
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.stream, name)
+
+
+class _ModelPrintFilter(_BlockFilter):
+    """stdout proxy dropping rsl-rl's model printout at construction (unless ``verbose``)."""
+
+    def write(self, text: str) -> int:
+        if not self.verbose and text.startswith(("Actor Model:", "Critic Model:")):
+            self._skip_newline = True
+            return len(text)
+        return super().write(text)

@@ -1,0 +1,223 @@
+"""A training session as ``scripts/train.py`` runs it: arguments, run folder, resume, export.
+
+Arguments are ``key=value`` (values parsed as YAML)::
+
+    task=stage6            bundled stage name or YAML path (not needed with curriculum/resume)
+    task.<key>=<value>     TaskConfig override (task.crowd.count=25)
+    train.<key>=<value>    TrainConfig override (train.num_envs=16, train.policy.init_log_std=-1)
+    seed=3                 same as train.seed=3
+    resume=RUN_DIR         continue RUN_DIR from its latest checkpoint up to train.iterations
+    init=CHECKPOINT        start a new run from a checkpoint's actor and critic weights
+    curriculum=true        walk stage1 -> stage7 (train.curriculum.*)
+    out=runs               parent folder of the run folders
+
+Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
+configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
+runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from mjnav.schema import ConfigError, apply_overrides, from_dict, parse_override, to_dict
+from mjnav.train import curriculum as stages
+from mjnav.train.config import TrainConfig, load_train
+from mjnav.train.curriculum import CurriculumState, run_curriculum, stage_name
+from mjnav.train.export import export_actor
+from mjnav.train.runner import (
+    TrainingInterrupted,
+    build_runner,
+    checkpoints,
+    handle_interrupts,
+    learn,
+    load_checkpoint,
+    make_vec_env,
+    save_checkpoint,
+)
+
+__all__ = ["RunArgs", "RunPlan", "parse_args", "plan_run", "run"]
+
+_TOP_LEVEL = {"task": str, "seed": int, "resume": str, "init": str, "curriculum": bool, "out": str}
+
+
+@dataclasses.dataclass(frozen=True)
+class RunArgs:
+    """Parsed command line (see the module docstring)."""
+
+    task: str | None = None
+    task_overrides: tuple[str, ...] = ()
+    train_overrides: tuple[str, ...] = ()
+    resume: str | None = None
+    init: str | None = None
+    curriculum: bool = False
+    out: str = "runs"
+
+
+@dataclasses.dataclass
+class RunPlan:
+    """Everything a session needs once the arguments are resolved."""
+
+    run_dir: Path
+    task: Any
+    train: TrainConfig
+    task_overrides: list[str]
+    curriculum: CurriculumState | None = None
+    checkpoint: Path | None = None
+    init: Path | None = None
+
+
+def parse_args(argv: Sequence[str]) -> RunArgs:
+    """Parse ``key=value`` arguments.
+
+    Raises:
+        ConfigError: Unknown key (named in the message), malformed argument or wrong value type.
+    """
+    fields: dict[str, Any] = {}
+    task_overrides: list[str] = []
+    train_overrides: list[str] = []
+    for text in argv:
+        key, value = parse_override(text)
+        raw = text.split("=", 1)[1]
+        if key.startswith("task."):
+            task_overrides.append(f"{key[5:]}={raw}")
+        elif key.startswith("train."):
+            train_overrides.append(f"{key[6:]}={raw}")
+        elif key == "seed":
+            train_overrides.append(f"seed={raw}")
+        elif key in _TOP_LEVEL:
+            if not isinstance(value, _TOP_LEVEL[key]) or isinstance(value, bool) != (_TOP_LEVEL[key] is bool):
+                raise ConfigError(f"{key}: expected a {_TOP_LEVEL[key].__name__}, got {value!r}")
+            fields[key] = value
+        else:
+            known = ", ".join(f"{k}=" for k in _TOP_LEVEL)
+            raise ConfigError(f"{key}: unknown argument (known: {known}, task.<key>=, train.<key>=)")
+    return RunArgs(task_overrides=tuple(task_overrides), train_overrides=tuple(train_overrides), **fields)
+
+
+def _task_from_dict(data: dict[str, Any], overrides: list[str]) -> Any:
+    from mjnav.config import TaskConfig
+
+    return apply_overrides(from_dict(TaskConfig, data), overrides)
+
+
+def plan_run(args: RunArgs) -> RunPlan:
+    """Resolve configs, run folder and checkpoint of a fresh or resumed run (creates nothing)."""
+    if args.resume is not None:
+        return _plan_resume(args)
+    train = load_train(list(args.train_overrides))
+    overrides = list(args.task_overrides)
+    if args.curriculum:
+        state = CurriculumState(stage=train.curriculum.first_stage)
+        task, label = stages.load_stage(stage_name(state.stage), overrides), "curriculum"
+    elif args.task is None:
+        raise ConfigError("task: required (task=stage6), unless resume=RUN_DIR or curriculum=true")
+    else:
+        state, task = None, stages.load_stage(args.task, overrides)
+        label = task.name
+    run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
+    init = Path(args.init) if args.init else None
+    return RunPlan(run_dir, task, train, overrides, state, init=init)
+
+
+def _plan_resume(args: RunArgs) -> RunPlan:
+    if args.init is not None:
+        raise ConfigError("init: cannot be combined with resume")
+    run_dir = Path(args.resume)  # type: ignore[arg-type]
+    saved = yaml.safe_load((run_dir / "config.yaml").read_text())
+    train = load_train(list(args.train_overrides), base=from_dict(TrainConfig, saved["train"]))
+    overrides = list(saved["run"]["task_overrides"]) + list(args.task_overrides)
+    found = checkpoints(run_dir)
+    if not found:
+        raise ConfigError(f"resume: no model_<it>.pt checkpoint in {run_dir}")
+    if saved["run"]["curriculum"]:
+        state = CurriculumState.load(run_dir)
+        return RunPlan(
+            run_dir, stages.load_stage(stage_name(state.stage), overrides), train, overrides, state, found[-1]
+        )
+    task = _task_from_dict(saved["task"], list(args.task_overrides))
+    return RunPlan(run_dir, task, train, overrides, None, found[-1])
+
+
+def _write_config(plan: RunPlan, argv: Sequence[str]) -> None:
+    plan.run_dir.mkdir(parents=True, exist_ok=True)
+    record = {
+        "run": {
+            "task": plan.task.name,
+            "task_overrides": plan.task_overrides,
+            "curriculum": plan.curriculum is not None,
+            "init": str(plan.init) if plan.init else None,
+            "argv": list(argv),
+        },
+        "task": to_dict(plan.task),
+        "train": to_dict(plan.train),
+    }
+    (plan.run_dir / "config.yaml").write_text(yaml.safe_dump(record, sort_keys=False))
+
+
+def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Path:
+    """Run a training session; returns the run folder.
+
+    Args:
+        argv: ``key=value`` arguments.
+        make_env: ``make_env(task, train, seed=None, num_envs=None)`` building the adapter.
+    """
+    plan = plan_run(parse_args(argv))
+    _write_config(plan, argv)
+    train = plan.train
+    env = make_env(plan.task, train)
+    runner = None
+    try:
+        runner = build_runner(
+            env, train, plan.run_dir, label=plan.task.name if plan.curriculum is None else "curriculum"
+        )
+        if plan.checkpoint is not None:
+            load_checkpoint(runner, plan.checkpoint)
+        elif plan.init is not None:
+            load_checkpoint(runner, plan.init, weights_only=True)
+        _print_header(plan, env, runner.current_learning_iteration)
+        if not _train(runner, plan, make_env):
+            return plan.run_dir
+        for path in export_actor(runner.alg.get_policy(), plan.run_dir):
+            print(f"exported {path}")
+    finally:
+        for vec_env in {id(env): env, id(getattr(runner, "env", env)): getattr(runner, "env", env)}.values():
+            vec_env.close()
+    return plan.run_dir
+
+
+def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
+    """Train to the end (True) or until interrupted, saving a checkpoint first (False)."""
+    train = plan.train
+    with handle_interrupts():
+        try:
+            if plan.curriculum is not None:
+                plan.curriculum.save(plan.run_dir)
+                run_curriculum(runner, train, plan.task_overrides, plan.curriculum, plan.run_dir, make_env)
+            elif runner.current_learning_iteration < train.iterations:
+                learn(
+                    runner, train.iterations - runner.current_learning_iteration, train.random_initial_lengths
+                )
+        except TrainingInterrupted:
+            path = save_checkpoint(runner, plan.run_dir)
+            print(f"saved {path}\ncontinue with: python scripts/train.py resume={plan.run_dir}", flush=True)
+            return False
+    return True
+
+
+def _print_header(plan: RunPlan, env: Any, start: int) -> None:
+    t = plan.train
+    batch = t.num_envs * t.steps_per_env
+    print(
+        f"run {plan.run_dir} | task {plan.task.name} | {t.num_envs} envs x {t.steps_per_env} steps = {batch} "
+        f"transitions/iteration | {t.epochs} epochs x {t.minibatches} minibatches of "
+        f"{batch // t.minibatches} | "
+        f"workers {env.workers} | device {t.device} | iterations {start}->{t.iterations}",
+        flush=True,
+    )

@@ -1,0 +1,235 @@
+"""NavVecEnv: the rsl-rl adapter over a fake navigation env (no MuJoCo)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+
+from mjnav.envs.vec_env import OUTCOMES, EnvError, NavVecEnv
+
+OBS_DIM, ACT_DIM = 399, 4
+
+
+class FakeNavEnv(gym.Env):
+    """A point moving toward the origin; same spaces and info contract as the real env.
+
+    The goal is reached when the point is within 0.3 of the origin (success); leaving the
+    [-3, 3]² box is a collision; ``limit`` steps without either is a truncation.
+    """
+
+    def __init__(
+        self, limit: int = 20, fail_step: int | None = None, die: bool = False, noise: float = 0.05
+    ) -> None:
+        """Spaces as the real env; ``spec.max_episode_steps`` = ``limit``."""
+        self.spec = gym.envs.registration.EnvSpec("FakeNav-v0", max_episode_steps=limit)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_DIM,), np.float32)
+        self.action_space = gym.spaces.Box(-np.inf, np.inf, (ACT_DIM,), np.float32)
+        self.limit, self.fail_step, self.die, self.noise = limit, fail_step, die, noise
+        self._pos = np.zeros(2)
+        self._t = 0
+        self.total_steps = 0
+
+    def _obs(self) -> np.ndarray:
+        obs = np.zeros(OBS_DIM, np.float32)
+        obs[:2] = self._pos
+        obs[2] = self._t / self.limit
+        obs[3:10] = self.np_random.random(7)
+        return obs
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start 1-2 units from the origin."""
+        super().reset(seed=seed)
+        angle, radius = self.np_random.uniform(-np.pi, np.pi), self.np_random.uniform(1.0, 2.0)
+        self._pos = radius * np.array([np.cos(angle), np.sin(angle)])
+        self._t = 0
+        return self._obs(), {"outcome": "running", "episode_seed": 0}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Move by the squashed action (plus noise); fail on request."""
+        self.total_steps += 1
+        if self.fail_step is not None and self.total_steps >= self.fail_step:
+            if self.die:
+                os._exit(3)
+            raise RuntimeError("fake env exploded on purpose")
+        squashed = 1.0 / (1.0 + np.exp(-np.asarray(action, np.float64)))
+        before = np.linalg.norm(self._pos)
+        self._pos = self._pos + 0.6 * (squashed[:2] - 0.5) + self.noise * self.np_random.standard_normal(2)
+        self._t += 1
+        dist = np.linalg.norm(self._pos)
+        outcome = "success" if dist < 0.3 else "collision" if np.abs(self._pos).max() > 3.0 else "running"
+        terms = {"approach": before - dist, "success": 10.0 * (outcome == "success")}
+        terms["collision"] = -5.0 * (outcome == "collision")
+        truncated = outcome == "running" and self._t >= self.limit
+        outcome = "timeout" if truncated else outcome
+        info = {
+            "outcome": outcome,
+            "reward_terms": terms,
+            "episode_seed": 0,
+            "mpc": {"solve_time_ms": 1.0 + dist, "fallback": 0.0},
+        }
+        return self._obs(), float(sum(terms.values())), outcome in ("success", "collision"), truncated, info
+
+
+@dataclasses.dataclass(frozen=True)
+class FakeFactory:
+    """Picklable ``env_fn(index)``; ``fail_env`` raises (or dies) at its ``fail_step``-th step.
+
+    ``fail_step=0`` fails while building.
+    """
+
+    limit: int = 20
+    fail_env: int | None = None
+    fail_step: int = 3
+    die: bool = False
+    noise: float = 0.05
+
+    def __call__(self, index: int) -> FakeNavEnv:
+        """Build env ``index``."""
+        failing = index == self.fail_env
+        if failing and self.fail_step == 0:
+            raise ValueError(f"fake env {index} refused to build")
+        return FakeNavEnv(self.limit, self.fail_step if failing else None, self.die, self.noise)
+
+
+def _rollout(env: NavVecEnv, steps: int, seed: int = 0) -> list[tuple]:
+    gen = torch.Generator().manual_seed(seed)
+    out = []
+    for _ in range(steps):
+        actions = torch.randn(env.num_envs, env.num_actions, generator=gen)
+        obs, rew, dones, extras = env.step(actions)
+        out.append((obs["policy"].clone(), rew.clone(), dones.clone(), extras["time_outs"].clone()))
+    return out
+
+
+@pytest.fixture(params=[0, 2], ids=["inprocess", "2workers"])
+def workers(request: pytest.FixtureRequest) -> int:
+    """Worker count: in-process and two processes."""
+    return request.param
+
+
+def test_shapes_and_dtypes(workers: int) -> None:
+    """Observations, rewards, dones and time_outs have the rsl-rl shapes and dtypes."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=1, workers=workers) as env:
+        obs = env.get_observations()
+        assert obs["policy"].shape == (4, OBS_DIM) and obs["policy"].dtype == torch.float32
+        assert env.num_actions == ACT_DIM and env.max_episode_length == 20
+        obs, rew, dones, extras = env.step(torch.zeros(4, ACT_DIM))
+        assert obs["policy"].shape == (4, OBS_DIM) and rew.shape == (4,) and rew.dtype == torch.float32
+        assert dones.shape == (4,) and dones.dtype == torch.long
+        assert extras["time_outs"].shape == (4,) and extras["time_outs"].dtype == torch.bool
+
+
+def test_get_observations_never_resets() -> None:
+    """get_observations returns the same observation twice and does not advance the clock."""
+    with NavVecEnv(FakeFactory(), num_envs=2, seed=1, workers=0) as env:
+        env.step(torch.zeros(2, ACT_DIM))
+        first, second = env.get_observations(), env.get_observations()
+        assert torch.equal(first["policy"], second["policy"])
+        assert env.episode_length_buf.tolist() == [1, 1]
+
+
+def test_auto_reset_and_time_outs_on_truncation() -> None:
+    """Zero actions never finish: every env truncates at the env's limit, reports time_outs, restarts."""
+    with NavVecEnv(
+        FakeFactory(limit=5, noise=0.0), num_envs=3, seed=2, workers=0, max_episode_length=100
+    ) as env:
+        for _ in range(4):
+            _, _, dones, extras = env.step(torch.zeros(3, ACT_DIM))
+            assert not dones.any() and not extras["time_outs"].any()
+        obs, _, dones, extras = env.step(torch.zeros(3, ACT_DIM))
+        assert dones.tolist() == [1, 1, 1] and extras["time_outs"].all()
+        assert extras["outcomes"].tolist() == [OUTCOMES.index("timeout")] * 3
+        assert (obs["policy"][:, 2] == 0).all(), "the observation after a done starts the next episode"
+        assert env.episode_length_buf.tolist() == [0, 0, 0]
+        assert extras["log"]["episode/length"].tolist() == [5.0, 5.0, 5.0]
+
+
+def test_episode_length_buf_is_honoured() -> None:
+    """An overwritten episode_length_buf makes the adapter truncate at max_episode_length."""
+    with NavVecEnv(
+        FakeFactory(limit=1000, noise=0.0), num_envs=2, seed=3, workers=0, max_episode_length=10
+    ) as env:
+        env.episode_length_buf = torch.tensor([8, 0])
+        _, _, dones, _ = env.step(torch.zeros(2, ACT_DIM))
+        assert dones.tolist() == [0, 0]
+        obs, _, dones, extras = env.step(torch.zeros(2, ACT_DIM))
+        assert dones.tolist() == [1, 0] and extras["time_outs"].tolist() == [True, False]
+        assert env.episode_length_buf.tolist() == [0, 2]
+        assert obs["policy"][0, 2] == 0.0 and obs["policy"][1, 2] > 0.0
+        assert extras["log"]["episode/length"].tolist() == [2.0], "true steps, not the clock"
+
+
+def test_log_keys(workers: int) -> None:
+    """extras['log'] carries episode/, reward/ and mpc/ keys with finite values."""
+    seen: dict[str, list[float]] = {}
+    with NavVecEnv(FakeFactory(limit=8), num_envs=4, seed=4, workers=workers) as env:
+        gen = torch.Generator().manual_seed(0)
+        for _ in range(20):
+            _, _, _, extras = env.step(3.0 * torch.randn(4, ACT_DIM, generator=gen))
+            for key, value in extras["log"].items():
+                seen.setdefault(key, []).extend(torch.as_tensor(value).flatten().tolist())
+    episode = {f"episode/{k}" for k in ("success", "collision", "timeout", "length", "return")}
+    assert episode | {"reward/approach", "reward/success", "mpc/solve_time_ms", "mpc/fallback"} <= set(seen)
+    assert all(np.isfinite(v).all() for v in seen.values())
+    rates = [np.mean(seen[f"episode/{k}"]) for k in ("success", "collision", "timeout")]
+    assert abs(sum(rates) - 1.0) < 1e-6
+    assert all(k.count("/") == 1 and not k.startswith("/") for k in seen)
+
+
+def test_same_seed_same_rollouts(workers: int) -> None:
+    """Two adapters with the same seed produce identical rollouts; another seed differs."""
+    runs = []
+    for seed in (7, 7, 8):
+        with NavVecEnv(FakeFactory(limit=6), num_envs=4, seed=seed, workers=workers) as env:
+            runs.append(_rollout(env, 15))
+    pairs = zip(runs[0], runs[1], strict=True)
+    same = all(torch.equal(a[0], b[0]) and torch.equal(a[1], b[1]) for a, b in pairs)
+    assert same
+    assert not all(torch.equal(a[0], b[0]) for a, b in zip(runs[0], runs[2], strict=True))
+
+
+def test_worker_count_does_not_change_rollouts() -> None:
+    """In-process and two-worker adapters with the same seed produce identical rollouts."""
+    runs = []
+    for workers in (0, 2):
+        with NavVecEnv(FakeFactory(limit=6), num_envs=5, seed=11, workers=workers) as env:
+            runs.append(_rollout(env, 12))
+    assert all(torch.equal(a[0], b[0]) and torch.equal(a[2], b[2]) for a, b in zip(*runs, strict=True))
+
+
+def test_worker_exception_surfaces(workers: int) -> None:
+    """An env that raises surfaces as EnvError with the env's message and traceback."""
+    env = NavVecEnv(FakeFactory(fail_env=3, fail_step=2), num_envs=4, seed=0, workers=workers)
+    env.step(torch.zeros(4, ACT_DIM))
+    with pytest.raises(EnvError, match="fake env exploded on purpose") as info:
+        env.step(torch.zeros(4, ACT_DIM))
+    assert "Traceback" in str(info.value) and "(in environment 3)" in str(info.value)
+    env.close()
+
+
+def test_dead_worker_surfaces() -> None:
+    """A worker process that dies is reported with its exit code instead of hanging."""
+    env = NavVecEnv(FakeFactory(fail_env=1, fail_step=1, die=True), num_envs=2, seed=0, workers=2)
+    with pytest.raises(EnvError, match=r"worker 1 .*died \(exit code 3\)"):
+        env.step(torch.zeros(2, ACT_DIM))
+    env.close()
+
+
+def test_construction_error_surfaces() -> None:
+    """A factory that raises while building fails the constructor with the worker's message."""
+    with pytest.raises(EnvError, match="fake env 1 refused to build"):
+        NavVecEnv(FakeFactory(fail_env=1, fail_step=0), num_envs=2, seed=0, workers=2)
+
+
+def test_nan_actions_rejected() -> None:
+    """NaN actions raise a ValueError naming the env before anything is stepped."""
+    with NavVecEnv(FakeFactory(), num_envs=2, seed=0, workers=0) as env:
+        actions = torch.zeros(2, ACT_DIM)
+        actions[1, 2] = float("nan")
+        with pytest.raises(ValueError, match=r"envs \[1\]"):
+            env.step(actions)

@@ -1,0 +1,271 @@
+"""PPO training with rsl-rl on a fake navigation env (no MuJoCo): runner, resume, export, CLI."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+import yaml
+from rsl_rl.runners import OnPolicyRunner
+
+from mjnav.envs.vec_env import NavVecEnv
+from mjnav.schema import ConfigError
+from mjnav.train import curriculum, session
+from mjnav.train.config import TrainConfig, load_train
+from mjnav.train.evaluate import evaluate
+from mjnav.train.export import export_actor, export_checkpoint
+from mjnav.train.runner import (
+    TrainingInterrupted,
+    build_runner,
+    checkpoints,
+    handle_interrupts,
+    learn,
+    load_checkpoint,
+    request_stop,
+    save_checkpoint,
+)
+
+OBS_DIM, ACT_DIM = 399, 4
+TINY = [
+    "num_envs=4",
+    "workers=0",
+    "steps_per_env=8",
+    "epochs=1",
+    "minibatches=2",
+    "save_interval=1",
+    "policy.actor_hidden_dims=[32, 32, 32]",
+    "policy.critic_hidden_dims=[32, 32, 32]",
+]
+
+
+class FakeNavEnv(gym.Env):
+    """A point pushed toward the origin: success within 0.4, collision outside [-3, 3]², 12-step limit."""
+
+    def __init__(self) -> None:
+        """Spaces as the real env."""
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_DIM,), np.float32)
+        self.action_space = gym.spaces.Box(-np.inf, np.inf, (ACT_DIM,), np.float32)
+        self._pos, self._t = np.zeros(2), 0
+
+    def _obs(self) -> np.ndarray:
+        obs = np.zeros(OBS_DIM, np.float32)
+        obs[:2], obs[2] = self._pos / 3.0, self._t / 12
+        return obs
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start anywhere in [-2, 2]²."""
+        super().reset(seed=seed)
+        self._pos, self._t = self.np_random.uniform(-2.0, 2.0, 2), 0
+        return self._obs(), {"outcome": "running"}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """Move by the squashed action."""
+        before = np.linalg.norm(self._pos)
+        self._pos = self._pos + 0.8 * (1.0 / (1.0 + np.exp(-action[:2])) - 0.5)
+        self._t += 1
+        dist = np.linalg.norm(self._pos)
+        outcome = "success" if dist < 0.4 else "collision" if np.abs(self._pos).max() > 3 else "running"
+        truncated = outcome == "running" and self._t >= 12
+        terms = {"approach": float(before - dist), "success": 5.0 * (outcome == "success")}
+        info = {
+            "outcome": "timeout" if truncated else outcome,
+            "reward_terms": terms,
+            "mpc": {"fallback": 0.0},
+        }
+        return self._obs(), sum(terms.values()), outcome != "running", truncated, info
+
+
+def fake_env_fn(index: int) -> FakeNavEnv:
+    """Picklable factory of the fake env."""
+    return FakeNavEnv()
+
+
+def make_fake_env(
+    task: object, train: TrainConfig, seed: int | None = None, num_envs: int | None = None
+) -> NavVecEnv:
+    """Drop-in for :func:`mjnav.train.runner.make_vec_env` building fake envs in-process."""
+    return NavVecEnv(
+        fake_env_fn,
+        num_envs or train.num_envs,
+        seed=train.seed if seed is None else seed,
+        workers=0,
+        max_episode_length=12,
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class StubTask:
+    """Stands in for TaskConfig in session tests."""
+
+    name: str = "fake"
+
+
+@pytest.fixture()
+def tiny() -> TrainConfig:
+    """A train config small enough for a unit test."""
+    return load_train(TINY)
+
+
+def _trained(tiny: TrainConfig, log_dir: Path, iterations: int = 2) -> OnPolicyRunner:
+    env = make_fake_env(None, tiny)
+    runner = build_runner(env, tiny, log_dir, label="fake")
+    learn(runner, iterations)
+    return runner
+
+
+def test_two_iterations_write_checkpoints_and_events(tiny: TrainConfig, tmp_path: Path) -> None:
+    """Two PPO iterations save model_0/model_1 and TensorBoard events with the adapter's log keys."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    runner = _trained(tiny, tmp_path)
+    runner.env.close()
+    assert [p.name for p in checkpoints(tmp_path)] == ["model_0.pt", "model_1.pt"]
+    assert runner.current_learning_iteration == 2
+    events = EventAccumulator(str(tmp_path)).Reload()
+    tags = set(events.Tags()["scalars"])
+    assert {
+        "Loss/value",
+        "Perf/collection_time",
+        "reward/approach",
+        "mpc/fallback",
+        "perf/env_step_ms",
+    } <= tags
+    assert "episode/success" in tags and not any(t.startswith("Episode/") for t in tags)
+
+
+def test_resume_continues_iteration_count(tiny: TrainConfig, tmp_path: Path) -> None:
+    """Loading the latest checkpoint continues at the next iteration and restores the weights."""
+    first = _trained(tiny, tmp_path)
+    first.env.close()
+    weights = first.alg.get_policy().state_dict()
+    env = make_fake_env(None, tiny)
+    runner = build_runner(env, dataclasses.replace(tiny, seed=99), tmp_path)
+    load_checkpoint(runner, checkpoints(tmp_path)[-1])
+    assert runner.current_learning_iteration == 2
+    assert all(torch.equal(v, runner.alg.get_policy().state_dict()[k]) for k, v in weights.items())
+    learn(runner, 2)
+    env.close()
+    assert [p.name for p in checkpoints(tmp_path)][-2:] == ["model_2.pt", "model_3.pt"]
+    assert torch.load(tmp_path / "model_3.pt", weights_only=False)["iter"] == 3
+
+
+def test_init_loads_weights_only(tiny: TrainConfig, tmp_path: Path) -> None:
+    """init= copies actor and critic weights into a fresh run that starts at iteration 0."""
+    first = _trained(tiny, tmp_path, iterations=1)
+    first.env.close()
+    env = make_fake_env(None, tiny)
+    runner = build_runner(env, dataclasses.replace(tiny, seed=5), None)
+    env.close()
+    load_checkpoint(runner, checkpoints(tmp_path)[-1], weights_only=True)
+    assert runner.current_learning_iteration == 0
+    for name in ("actor", "critic"):
+        ours, theirs = getattr(runner.alg, name).state_dict(), getattr(first.alg, name).state_dict()
+        assert all(torch.equal(v, ours[k]) for k, v in theirs.items())
+    assert not runner.alg.optimizer.state_dict()["state"], "optimizer state starts fresh"
+
+
+def test_stop_request_saves_after_the_iteration(tiny: TrainConfig, tmp_path: Path) -> None:
+    """A stop request (as SIGTERM sends) ends learn after one iteration; the checkpoint resumes at 1."""
+    env = make_fake_env(None, tiny)
+    runner = build_runner(env, tiny, tmp_path / "log")
+    with handle_interrupts():
+        request_stop()
+        with pytest.raises(TrainingInterrupted):
+            learn(runner, 5)
+    env.close()
+    assert runner.current_learning_iteration == 1
+    path = save_checkpoint(runner, tmp_path)
+    assert path.name == "model_0.pt" and torch.load(path, weights_only=False)["iter"] == 0
+
+
+def test_actor_and_critic_match_the_paper(tmp_path: Path) -> None:
+    """Default networks: 399-256-256-256-4 ReLU/ReLU/Hardswish actor, log-std -0.5, 320-wide critic, AdamW."""
+    train = load_train(["num_envs=2", "workers=0", "steps_per_env=4", "minibatches=1"])
+    env = make_fake_env(None, train)
+    runner = build_runner(env, train, None)
+    env.close()
+    actor, critic = runner.alg.get_policy(), runner.alg.critic
+    layers = [type(m).__name__ for m in actor.mlp]
+    assert layers == ["Linear", "ReLU", "Linear", "ReLU", "Linear", "Hardswish", "Linear"]
+    assert actor.mlp[0].in_features == OBS_DIM and actor.mlp[6].out_features == ACT_DIM
+    assert torch.allclose(actor.distribution.log_std_param, torch.full((ACT_DIM,), -0.5))
+    assert [m.out_features for m in critic.mlp if isinstance(m, torch.nn.Linear)] == [320, 320, 320, 1]
+    assert isinstance(runner.alg.optimizer, torch.optim.AdamW) and runner.alg.learning_rate == 1e-4
+    assert runner.alg.gamma == 0.98 and runner.alg.lam == 0.98 and runner.alg.entropy_coef == 0.05
+
+
+def test_torchscript_export_matches_policy_mean(tiny: TrainConfig, tmp_path: Path) -> None:
+    """policy.pt loads with torch.jit.load and reproduces the policy mean for (399,) and (B, 399) inputs."""
+    runner = _trained(tiny, tmp_path, iterations=1)
+    obs = runner.env.get_observations()
+    runner.env.close()
+    written = export_actor(runner.alg.get_policy(), tmp_path / "export")
+    scripted = torch.jit.load(str(tmp_path / "export" / "policy.pt"))
+    with torch.no_grad():
+        mean = runner.get_inference_policy()(obs)
+        assert torch.allclose(scripted(obs["policy"]), mean, atol=1e-6)
+        assert scripted(obs["policy"][0]).shape == (ACT_DIM,)
+    from_checkpoint = export_checkpoint(checkpoints(tmp_path)[-1], tiny, tmp_path / "ckpt")
+    assert torch.allclose(torch.jit.load(str(from_checkpoint[0]))(obs["policy"]), mean, atol=1e-6)
+    if any(p.suffix == ".onnx" for p in written):
+        assert (tmp_path / "export" / "policy.onnx").stat().st_size > 0
+
+
+def test_evaluate_counts_the_requested_episodes(tiny: TrainConfig) -> None:
+    """Deterministic evaluation counts exactly the requested episodes; outcome rates sum to 1."""
+    env = make_fake_env(None, tiny)
+    result = evaluate(lambda obs: torch.zeros(obs.batch_size[0], ACT_DIM), env, episodes=10)
+    env.close()
+    assert result.episodes == 10
+    assert math.isclose(result.success + result.collision + result.timeout, 1.0)
+
+
+def test_override_rejection() -> None:
+    """Unknown top-level, train and task keys are rejected with the key's name; bad values too."""
+    with pytest.raises(ConfigError, match="bogus"):
+        session.parse_args(["bogus=1"])
+    with pytest.raises(ConfigError, match="num_env"):
+        load_train(["num_env=4"])
+    with pytest.raises(ConfigError, match="minibatches"):
+        load_train(["num_envs=3", "steps_per_env=3", "minibatches=4"])
+    with pytest.raises(ConfigError, match="curriculum"):
+        session.parse_args(["curriculum=maybe"])
+    args = session.parse_args(["task=stage6", "task.crowd.count=25", "train.num_envs=8", "seed=3"])
+    assert args.task_overrides == ("crowd.count=25",) and args.train_overrides == ("num_envs=8", "seed=3")
+    with pytest.raises(ConfigError, match="policy.widths"):
+        session.plan_run(session.parse_args(["task=stage6", "train.policy.widths=1"]))
+
+
+def test_session_fresh_resume_and_curriculum(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The scripts/train.py session: a fresh run, its resume and a two-stage curriculum export policy.pt."""
+    monkeypatch.setattr(curriculum, "load_stage", lambda name, overrides: StubTask(name))
+    monkeypatch.setattr(session, "_task_from_dict", lambda data, overrides: StubTask(data["name"]))
+    tiny = [f"train.{o}" for o in TINY]
+    run_dir = session.run(
+        ["task=fake", "train.iterations=2", f"out={tmp_path}", *tiny], make_env=make_fake_env
+    )
+    assert run_dir.name.startswith("fake-") and (run_dir / "policy.pt").exists()
+    saved = yaml.safe_load((run_dir / "config.yaml").read_text())
+    assert saved["train"]["num_envs"] == 4 and saved["task"] == {"name": "fake"}
+    session.run([f"resume={run_dir}", "train.iterations=3"], make_env=make_fake_env)
+    assert checkpoints(run_dir)[-1].name == "model_2.pt"
+    plan = [
+        "curriculum=true",
+        "train.curriculum.first_stage=6",
+        "train.curriculum.eval_interval=1",
+        "train.curriculum.eval_episodes=4",
+        "train.curriculum.stage_steps=1",
+        f"out={tmp_path}",
+    ]
+    run_dir = session.run([*plan, *tiny], make_env=make_fake_env)
+    state = curriculum.CurriculumState.load(run_dir)
+    assert state.finished and [e["stage"] for e in state.evaluations] == [6, 7]
+    assert [e["decision"] for e in state.evaluations] == ["budget", "budget"] or state.evaluations[0][
+        "success"
+    ] >= 0.9
+    assert (run_dir / "policy.pt").exists()
