@@ -1,3 +1,33 @@
-"""mjnav: MuJoCo crowd-navigation scenarios and learning-based convex MPC."""
+"""mjnav: MuJoCo crowd-navigation scenarios and learning-based convex MPC.
+
+``import mjnav`` registers the Gymnasium ids ``mjnav/Stage1-v1`` … ``mjnav/Stage7-v1``;
+``mjnav.make_env("stage6", seed=0)`` returns the dm_control composer environment.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mjnav.envs.registration import ENV_IDS, register_envs
 
 __version__ = "0.1.0"
+__all__ = ["ENV_IDS", "load_task", "make_env", "make_gym_env"]
+
+register_envs()
+
+
+def __getattr__(name: str) -> Any:
+    """Import the heavy entry points (MuJoCo, numba kernels) only when used."""
+    if name == "make_env":
+        from mjnav.envs.factory import make_env
+
+        return make_env
+    if name == "make_gym_env":
+        from mjnav.envs.gym_env import make_gym_env
+
+        return make_gym_env
+    if name == "load_task":
+        from mjnav.config import load_task
+
+        return load_task
+    raise AttributeError(f"module 'mjnav' has no attribute {name!r}")

@@ -12,6 +12,8 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+import time
+import typing
 
 import numpy as np
 
@@ -22,7 +24,7 @@ from mjnav.geometry.region import Region, compute_region
 from mjnav.tasks import observation as obs_lib
 from mjnav.tasks import reward as reward_lib
 
-__all__ = ["NavCore", "Outcome", "StepRecord", "sigmoid"]
+__all__ = ["NavCore", "Outcome", "Planner", "PlannerInput", "StepRecord", "sigmoid"]
 
 
 class Outcome(enum.Enum):
@@ -42,6 +44,41 @@ class Outcome(enum.Enum):
     def done(self) -> bool:
         """Any outcome but running ends the episode."""
         return self is not Outcome.RUNNING
+
+
+@dataclasses.dataclass(frozen=True)
+class PlannerInput:
+    """What a non-learned planner (baseline) sees at the start of a control step.
+
+    Attributes:
+        scan: LiDAR ranges as the robot sees them (noisy), metres.
+        angles: Beam angles, radians (beam 0 along +x, CCW).
+        position: Robot position, world frame, metres.
+        velocity: Robot velocity, m/s.
+        acceleration: Robot (reference) acceleration, m/s².
+        goal: Goal, world frame, metres.
+        region: The free-space polygon of this scan (robot frame).
+        time: Time since the episode start, seconds.
+    """
+
+    scan: np.ndarray
+    angles: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    goal: np.ndarray
+    region: Region
+    time: float
+
+
+class Planner(typing.Protocol):
+    """A baseline controller: replaces the learned action layer, same episode and scoring."""
+
+    def reset(self, config, rng: np.random.Generator) -> None:
+        """Start an episode (config is the task's TaskConfig)."""
+
+    def act(self, inp: PlannerInput) -> np.ndarray:
+        """Jerk (2,) in m/s³ to apply over the next control period."""
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:
@@ -78,6 +115,7 @@ class NavCore:
         self._mpc = Mpc(config.mpc)
         self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points)
         self.counters = {"region_failures": 0, "fallbacks": 0, "steps": 0}
+        self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
 
     # ------------------------------------------------------------------ episode
     def reset(self, goal: np.ndarray, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray) -> np.ndarray:
@@ -94,7 +132,9 @@ class NavCore:
         return self._stack.reset(polygon, state)
 
     def _region(self, scan: np.ndarray) -> Region:
+        t0 = time.perf_counter()
         region = compute_region(scan, self._angles, self.config.region)
+        self.timers["region"] += time.perf_counter() - t0
         if not region.success:
             self.counters["region_failures"] += 1
         return region
@@ -118,10 +158,14 @@ class NavCore:
         if action.shape != (4,) or not np.all(np.isfinite(action)):
             raise ValueError(f"action must be 4 finite values, got {action!r}")
         goal_rel = self.goal - position
+        t0 = time.perf_counter()
         points = map_action(sigmoid(action), self.region, velocity, accel, goal_rel, self.config.action)
         polygon = self.region.vertices if self.region.success else None
-        state = (np.zeros(2), velocity, accel)
-        result = self._mpc.solve(state, points.q_s, points.q_l_target, polygon, points.goal_inside)
+        state = np.stack([np.zeros(2), velocity, accel])
+        t1 = time.perf_counter()
+        result = self._mpc.solve(state, points.q_s, points.q_l_ref, polygon, points.goal_inside)
+        self.timers["action"] += t1 - t0
+        self.timers["mpc"] += time.perf_counter() - t1
         plan_ok = result.fallback is None
         self.counters["fallbacks"] += int(not plan_ok)
         self._remember(points, result, position, plan_ok)
@@ -141,7 +185,7 @@ class NavCore:
         self.record = StepRecord(
             q_s=position + points.q_s,
             q_l=position + points.q_l,
-            q_l_target=position + points.q_l_target,
+            q_l_target=position + points.q_l_ref,
             predicted=position + result.positions,
             polygon=polygon,
             plan_ok=plan_ok,
@@ -149,6 +193,21 @@ class NavCore:
             solve_time_s=result.solve_time_s,
             region_ok=bool(self.region.success),
         )
+
+    def plan_with(self, planner: Planner, scan: np.ndarray, position: np.ndarray, velocity: np.ndarray,
+                  accel: np.ndarray) -> np.ndarray:
+        """Jerk from a baseline planner (its action points are recorded as the robot position)."""
+        inp = PlannerInput(scan, self._angles, position.copy(), velocity.copy(), accel.copy(), self.goal.copy(),
+                           self.region, self.steps * self.config.timing.control_period)
+        jerk = np.asarray(planner.act(inp), dtype=np.float64).reshape(2)
+        if not np.all(np.isfinite(jerk)):
+            raise ValueError(f"planner {type(planner).__name__} returned a non-finite jerk {jerk!r}")
+        jerk = np.clip(jerk, -self.config.mpc.j_max, self.config.mpc.j_max)
+        here = position.copy()
+        self._pending = {"plan": None, "q_s": here, "q_l": here, "q1": here, "qn": here, "plan_ok": False}
+        self.record = StepRecord(here, here, here, here[None], position + self.region.boundary_xy, False,
+                                 None, 0.0, bool(self.region.success))
+        return jerk
 
     # ------------------------------------------------------------------ scoring
     def finish_step(
@@ -180,13 +239,18 @@ class NavCore:
             prev_q_s=prev["q_s"], prev_q_l=prev["q_l"], velocity=velocity, prev_velocity=prev["velocity"],
             control_period=self.config.timing.control_period,
         )
+        t0 = time.perf_counter()
         reward, terms = reward_lib.total(inputs, self.config.reward)
+        self.timers["reward"] += time.perf_counter() - t0
         self._plan = pending["plan"]
         self._prev = {"q_s": pending["q_s"], "q_l": pending["q_l"], "plan_ok": pending["plan_ok"],
                       "distance": distance, "velocity": velocity.copy()}
         self.region = self._region(scan)
+        t0 = time.perf_counter()
         polygon, state = self._frame(position, velocity)
-        return self._stack.push(polygon, state), reward, terms
+        obs = self._stack.push(polygon, state)
+        self.timers["observation"] += time.perf_counter() - t0
+        return obs, reward, terms
 
     def _outcome(self, success: bool, collision: bool) -> Outcome:
         if collision:

@@ -10,6 +10,8 @@ Stages differ only by their :class:`mjnav.config.TaskConfig`.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from dm_control import composer
 from dm_control.composer.observation import observable
@@ -36,6 +38,10 @@ class CrowdNavTask(composer.Task):
         self.next_episode_seed: int | None = None
         self.episode_seed: int | None = None
         self.layout = None
+        self.planner = None  # a mjnav.tasks.core.Planner replaces the learned action layer when set
+        self._scan = None
+        self.timers = {"physics": 0.0, "lidar": 0.0}  # seconds, accumulated; NavCore has the rest
+        self._t_physics = 0.0
         self._observable = observable.Generic(lambda physics: self._obs)
         self._observable.enabled = True
 
@@ -69,8 +75,10 @@ class CrowdNavTask(composer.Task):
         self.rng = np.random.default_rng(seed)
         self.layout = self.sim.initialize_episode(physics, self.rng)
         p, v, _ = self.sim.robot_state(physics)
-        scan = self.sim.scan(physics, self.rng)
+        scan = self._scan = self.sim.scan(physics, self.rng)
         self._obs[:] = self.core.reset(self.layout.goal, p, v, scan)
+        if self.planner is not None:
+            self.planner.reset(self.config, np.random.default_rng([seed, 1]))  # own stream: scenario stays paired
         self._reward = 0.0
         self.terms = {}
 
@@ -78,8 +86,12 @@ class CrowdNavTask(composer.Task):
         """Turn the action into a jerk command for the coming control period."""
         del random_state
         p, v, a = self.sim.robot_state(physics)
-        jerk = self.core.plan(action, p, v, a)
+        if self.planner is None:
+            jerk = self.core.plan(action, p, v, a)
+        else:
+            jerk = self.core.plan_with(self.planner, self._scan, p, v, a)
         self.sim.apply_command(physics, jerk)
+        self._t_physics = time.perf_counter()
 
     def before_substep(self, physics, action, random_state) -> None:
         """Move the pedestrians and apply the tracking force."""
@@ -89,8 +101,12 @@ class CrowdNavTask(composer.Task):
     def after_step(self, physics, random_state) -> None:
         """Scan, score the step and build the next observation."""
         del random_state
+        t0 = time.perf_counter()
+        self.timers["physics"] += t0 - self._t_physics
+        self.sim.sync(physics)
         p, v, _ = self.sim.robot_state(physics)
-        scan = self.sim.scan(physics, self.rng)
+        scan = self._scan = self.sim.scan(physics, self.rng)
+        self.timers["lidar"] += time.perf_counter() - t0
         contact, self.contact_kind = self.sim.robot_in_collision(physics)
         obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact)
         self._obs[:] = obs

@@ -1,0 +1,134 @@
+"""Behaviour of the composer task and its Gymnasium view."""
+
+import numpy as np
+import pytest
+from absl.testing import absltest
+from dm_env import test_utils
+from gymnasium.utils.env_checker import check_env
+
+import mjnav
+from mjnav.envs.gym_env import NavGymEnv
+from mjnav.tasks.core import Outcome
+
+ZERO = np.zeros(4, dtype=np.float32)
+
+
+class _Hold:
+    """A planner that holds the robot still (zero jerk from rest)."""
+
+    def reset(self, config, rng) -> None:
+        del config, rng
+
+    def act(self, inp) -> np.ndarray:
+        return -inp.acceleration / 0.1
+
+
+@pytest.fixture(scope="module")
+def stage4() -> NavGymEnv:
+    env = NavGymEnv("stage4", seed=0)
+    yield env
+    env.close()
+
+
+def test_teleport_onto_goal_is_success(stage4: NavGymEnv) -> None:
+    """A robot put on the goal succeeds on the next step with +140 and discount 0."""
+    stage4.reset(seed=3)
+    task = stage4.task
+    task.sim.robot.set_state(stage4.physics, task.layout.goal + 0.05)
+    _, reward, terminated, truncated, info = stage4.step(ZERO)
+    assert info["outcome"] == "success" and terminated and not truncated
+    assert info["reward_terms"]["success"] == 140.0
+    assert reward == pytest.approx(sum(info["reward_terms"].values()))
+    assert task.get_discount(stage4.physics) == 0.0
+
+
+def test_overlapping_a_pedestrian_is_collision(stage4: NavGymEnv) -> None:
+    """A robot put on a pedestrian collides (a real contact) with −30 and discount 0."""
+    stage4.reset(seed=5)
+    task = stage4.task
+    task.sim.robot.set_state(stage4.physics, task.sim.pedestrian_circles()[0, :2])
+    _, _, terminated, _, info = stage4.step(ZERO)
+    assert info["outcome"] == "collision" and terminated
+    assert info["reward_terms"]["collision"] == -30.0
+    assert task.get_discount(stage4.physics) == 0.0
+
+
+def test_timeout_is_truncation() -> None:
+    """A robot that never moves is truncated (not terminated) after exactly 300 control steps."""
+    env = NavGymEnv("stage1", seed=0)
+    env.task.planner = _Hold()
+    env.reset(seed=1)
+    for step in range(1, 301):
+        _, _, terminated, truncated, info = env.step(ZERO)
+        assert not terminated
+        if truncated:
+            break
+    assert step == 300 and info["outcome"] == "timeout"
+    assert env.task.get_discount(env.physics) == 1.0
+
+
+def test_nan_action_is_rejected(stage4: NavGymEnv) -> None:
+    """A NaN action raises a clear ValueError instead of reaching the MPC."""
+    stage4.reset(seed=1)
+    with pytest.raises(ValueError, match="finite"):
+        stage4.step(np.array([0, np.nan, 0, 0], dtype=np.float32))
+
+
+def test_same_seed_same_rollout() -> None:
+    """Two environments with the same seed give bit-identical observations and rewards."""
+    runs = []
+    for _ in range(2):
+        env = NavGymEnv("stage6", seed=11)
+        obs, _ = env.reset(seed=4)
+        rng = np.random.default_rng(0)
+        trace = [obs]
+        for _ in range(20):
+            obs, reward, term, trunc, _ = env.step(rng.normal(size=4).astype(np.float32))
+            trace.append(np.append(obs, reward))
+            if term or trunc:
+                obs, _ = env.reset()
+        runs.append(np.concatenate(trace))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_episode_seed_option_selects_scenario(stage4: NavGymEnv) -> None:
+    """options={'episode_seed': k} reproduces the same world regardless of history."""
+    stage4.reset(options={"episode_seed": 42})
+    first = stage4.task.layout
+    stage4.reset(seed=9)
+    stage4.reset(options={"episode_seed": 42})
+    assert stage4.task.layout == first and stage4.task.episode_seed == 42
+
+
+def test_step_info_reports_terms_and_mpc(stage4: NavGymEnv) -> None:
+    """Each step reports every enabled reward term and MPC statistics."""
+    stage4.reset(seed=2)
+    _, _, _, _, info = stage4.step(ZERO)
+    assert set(info["reward_terms"]) >= {"success", "collision", "approach", "feasibility", "change"}
+    assert {"fallback", "region_success"} <= set(info["mpc"]) and "solve_time_ms" not in info["mpc"]
+    timed = NavGymEnv("stage1", seed=0, timing_info=True)
+    timed.reset(seed=0)
+    assert timed.step(ZERO)[-1]["mpc"]["solve_time_ms"] > 0
+
+
+@pytest.mark.parametrize("env_id", mjnav.ENV_IDS)
+def test_gymnasium_checker(env_id: str) -> None:
+    """Every registered id passes Gymnasium's own environment checker."""
+    import gymnasium as gym
+
+    env = gym.make(env_id)
+    check_env(env.unwrapped, skip_render_check=True)
+    env.close()
+
+
+def test_outcome_flags() -> None:
+    """Only success and collision are terminal; timeout ends the episode as truncation."""
+    assert Outcome.SUCCESS.terminal and Outcome.COLLISION.terminal
+    assert not Outcome.TIMEOUT.terminal and Outcome.TIMEOUT.done and not Outcome.RUNNING.done
+
+
+class DmEnvTest(test_utils.EnvironmentTestMixin, absltest.TestCase):
+    """dm_env's conformance tests on stage 3 (obstacles and pedestrians)."""
+
+    def make_object_under_test(self):
+        return mjnav.make_env("stage3", seed=0)
