@@ -1,0 +1,244 @@
+"""Policy action -> short- and long-term reference points (spec §4).
+
+The policy emits four values already squashed by a sigmoid, ``(α_s, β_s, α_l, β_l) ∈ [0, 1]⁴``.
+Everything here is in the robot frame (metres, radians, SI).
+
+* Short-term circle radius ``R_s = short_scale × reach(t_c)``; long-term radius
+  ``R_l = max(long_min_radius, reach(long_time))`` (``long_circle='code'``) or ``reach(long_time)``
+  (``'paper'``). ``reach(t)`` is the farthest ``|v t + a t²/2 + j t³/6|`` over four jerk
+  directions (velocity heading, acceleration heading, their bisector and its negative) with
+  ``|j| = jerk_max·√2`` (the box corner).
+* ``θ_s = 2π α_s + heading(v)`` (``heading='velocity'``, code) or ``2π α_s`` (``'absolute'``,
+  paper); heading of a zero vector is 0. The ray from the robot at ``θ_s`` meets the boundary of
+  polygon ∩ disc(R_s) at distance ``d_θ^s`` (exact: ``min`` of the exact ray/convex-polygon
+  distance and ``R_s``); ``Q_s = β_s d_θ^s (cos θ_s, sin θ_s)``.
+* ``θ_l = θ_s + 2π α_l`` (= ``2π α_l`` + direction O→Q_s); from ``Q_s`` the ray meets
+  polygon ∩ disc(O, R_l) at ``d_θ^l``; ``Q_l = Q_s + β_l d_θ^l (cos θ_l, sin θ_l)``.
+  If ``Q_s`` is not inside disc(R_l) (impossible with the defaults), ``d_θ^l = 0``.
+* Goal inside the polygon -> the MPC reference is the goal (:attr:`ActionPoints.q_l_ref`); the
+  network's own point stays in :attr:`ActionPoints.q_l` (observation, feasibility reward).
+
+Failed region (``region.success`` False): the action polygon is the fallback star polygon (every
+6th beam's shrunk point, not convex). Rays are then cast against that closed polyline (first
+crossing) and the goal test is an even-odd point-in-polygon test on it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import numpy as np
+
+from mjnav.geometry.polygon import (
+    point_in_halfplanes,
+    points_in_polygon,
+    ray_circle_distance,
+    ray_convex_distance,
+    ray_polyline_distance,
+)
+from mjnav.geometry.region import Region
+
+__all__ = ["ActionConfig", "ActionPoints", "map_action", "radii", "reach_distance"]
+
+TWO_PI = 2.0 * math.pi
+
+
+def _check(cond: bool, name: str, msg: str) -> None:
+    if not cond:
+        raise ValueError(f"{name}: {msg}")
+
+
+@dataclasses.dataclass(frozen=True)
+class ActionConfig:
+    """Action mapping parameters (spec §4).
+
+    Attributes:
+        heading: ``velocity`` (θ_s offset by the velocity heading, code) or ``absolute`` (paper).
+        long_circle: ``code`` (R_l = max(long_min_radius, 1-s reach)) or ``paper`` (1-s reach).
+        jerk_max: Per-axis jerk bound, m/s³; the reach uses ``|j| = jerk_max·√2``.
+        t_c: Control period, s (short-term reach time).
+        long_time: Long-term reach time T = N·t_c, s.
+        short_scale: Factor on the one-period reach for R_s.
+        long_min_radius: Lower bound on R_l with ``long_circle='code'``, metres.
+    """
+
+    heading: Literal["velocity", "absolute"] = "velocity"
+    long_circle: Literal["code", "paper"] = "code"
+    jerk_max: float = 8.0
+    t_c: float = 0.1
+    long_time: float = 1.0
+    short_scale: float = 3.0
+    long_min_radius: float = 10.0
+
+    def __post_init__(self) -> None:
+        _check(self.heading in ("velocity", "absolute"), "heading", "must be 'velocity' or 'absolute'")
+        _check(self.long_circle in ("code", "paper"), "long_circle", "must be 'code' or 'paper'")
+        for name in ("jerk_max", "t_c", "long_time", "short_scale"):
+            value = getattr(self, name)
+            _check(math.isfinite(value) and value > 0.0, name, "must be finite and > 0")
+        _check(
+            math.isfinite(self.long_min_radius) and self.long_min_radius >= 0.0,
+            "long_min_radius",
+            "must be >= 0",
+        )
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ActionPoints:
+    """Reference points of one action (robot frame).
+
+    Attributes:
+        q_s: ``(2,)`` short-term point Q_s, metres.
+        q_l: ``(2,)`` the network's long-term point Q_l, metres (observation, r_f, r_c).
+        q_l_ref: ``(2,)`` long-term reference for the MPC: the goal if inside, else ``q_l``.
+        theta_s: Ray angle θ_s wrapped to [-π, π), rad.
+        theta_l: Ray angle θ_l wrapped to [-π, π), rad.
+        d_theta_s: Boundary distance along the short ray, metres.
+        d_theta_l: Boundary distance along the long ray (from Q_s), metres.
+        r_s: Short-term radius R_s, metres.
+        r_l: Long-term radius R_l, metres.
+        goal_inside: Whether the goal lies in the action polygon.
+    """
+
+    q_s: np.ndarray
+    q_l: np.ndarray
+    q_l_ref: np.ndarray
+    theta_s: float
+    theta_l: float
+    d_theta_s: float
+    d_theta_l: float
+    r_s: float
+    r_l: float
+    goal_inside: bool
+
+
+def reach_distance(velocity: np.ndarray, acceleration: np.ndarray, t: float, jerk_norm: float) -> float:
+    """Farthest one-shot travel ``|v t + a t²/2 + j t³/6|`` over the four spec jerk directions.
+
+    Args:
+        velocity: ``(2,)`` velocity, m/s.
+        acceleration: ``(2,)`` acceleration, m/s².
+        t: Duration, s.
+        jerk_norm: Jerk magnitude, m/s³.
+
+    Returns:
+        Distance in metres.
+    """
+    vx, vy, ax, ay = float(velocity[0]), float(velocity[1]), float(acceleration[0]), float(acceleration[1])
+    return max(_reaches(vx, vy, ax, ay, (t,), jerk_norm)[0])
+
+
+def _reaches(
+    vx: float, vy: float, ax: float, ay: float, times: tuple[float, ...], jerk: float
+) -> list[list[float]]:
+    """Per time, the travel for the four jerk directions (velocity, acceleration, ± bisector)."""
+    th_v, th_a = math.atan2(vy, vx), math.atan2(ay, ax)
+    th_b = th_v + _wrap(th_a - th_v) / 2.0
+    units = [(math.cos(th), math.sin(th)) for th in (th_v, th_a, th_b)]
+    units.append((-units[2][0], -units[2][1]))
+    out = []
+    for t in times:
+        bx, by, jt = vx * t + ax * t * t / 2.0, vy * t + ay * t * t / 2.0, jerk * t**3 / 6.0
+        out.append([math.hypot(bx + jt * c, by + jt * s) for c, s in units])
+    return out
+
+
+def map_action(
+    action01: np.ndarray,
+    region: Region,
+    velocity: np.ndarray,
+    acceleration: np.ndarray,
+    goal_rel: np.ndarray,
+    config: ActionConfig | None = None,
+) -> ActionPoints:
+    """Map a squashed action to Q_s, Q_l (spec §4).
+
+    Args:
+        action01: ``(4,)`` ``(α_s, β_s, α_l, β_l)`` in [0, 1] (the caller applies the sigmoid).
+        region: The current :class:`~mjnav.geometry.region.Region`.
+        velocity: ``(2,)`` robot velocity, m/s.
+        acceleration: ``(2,)`` robot acceleration, m/s².
+        goal_rel: ``(2,)`` goal relative to the robot, metres.
+        config: Mapping parameters; defaults to :class:`ActionConfig()`.
+
+    Returns:
+        The :class:`ActionPoints`.
+
+    Raises:
+        ValueError: On badly shaped or non-finite inputs, or an action outside [0, 1].
+    """
+    cfg = config if config is not None else _DEFAULT
+    a_s, b_s, a_l, b_l, vx, vy, ax, ay, gx, gy = _validate(action01, velocity, acceleration, goal_rel)
+    r_s, r_l = _radii(vx, vy, ax, ay, cfg)
+    theta_s = TWO_PI * a_s + (math.atan2(vy, vx) if cfg.heading == "velocity" else 0.0)
+    dir_s = np.array([math.cos(theta_s), math.sin(theta_s)])
+    d_s = min(_boundary_distance(region, _ORIGIN, dir_s), r_s)
+    q_s = (b_s * d_s) * dir_s
+    theta_l = theta_s + TWO_PI * a_l
+    dir_l = np.array([math.cos(theta_l), math.sin(theta_l)])
+    d_l = min(_boundary_distance(region, q_s, dir_l), ray_circle_distance(q_s, dir_l, r_l))
+    q_l = q_s + (b_l * d_l) * dir_l
+    goal = np.array([gx, gy])
+    inside = _goal_inside(region, goal)
+    return ActionPoints(
+        q_s, q_l, goal if inside else q_l, _wrap(theta_s), _wrap(theta_l), d_s, d_l, r_s, r_l, inside
+    )
+
+
+def radii(velocity: np.ndarray, acceleration: np.ndarray, config: ActionConfig) -> tuple[float, float]:
+    """Short- and long-term circle radii ``(R_s, R_l)`` in metres (spec §4)."""
+    return _radii(
+        float(velocity[0]), float(velocity[1]), float(acceleration[0]), float(acceleration[1]), config
+    )
+
+
+def _radii(vx: float, vy: float, ax: float, ay: float, config: ActionConfig) -> tuple[float, float]:
+    short, long = _reaches(vx, vy, ax, ay, (config.t_c, config.long_time), config.jerk_max * math.sqrt(2.0))
+    r_s, r_l = config.short_scale * max(short), max(long)
+    return r_s, (max(config.long_min_radius, r_l) if config.long_circle == "code" else r_l)
+
+
+_DEFAULT = ActionConfig()
+_ORIGIN = np.zeros(2)
+
+
+def _wrap(angle: float) -> float:
+    """Wrap an angle to [-π, π)."""
+    return (angle + math.pi) % TWO_PI - math.pi
+
+
+def _validate(
+    action01: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray, goal_rel: np.ndarray
+) -> list[float]:
+    """The ten inputs as Python floats; ValueError naming the first bad argument."""
+    args = (
+        ("action01", action01, 4),
+        ("velocity", velocity, 2),
+        ("acceleration", acceleration, 2),
+        ("goal_rel", goal_rel, 2),
+    )
+    values: list[float] = []
+    for name, value, size in args:
+        flat = np.ravel(value).tolist()
+        if len(flat) != size or not all(map(math.isfinite, flat)):
+            raise ValueError(f"{name}: expected {size} finite values, got {flat}")
+        values += flat
+    if min(values[:4]) < 0.0 or max(values[:4]) > 1.0:
+        raise ValueError(f"action01: values must lie in [0, 1] (sigmoid-squashed), got {values[:4]}")
+    return [float(v) for v in values]
+
+
+def _boundary_distance(region: Region, origin: np.ndarray, direction: np.ndarray) -> float:
+    """Distance along the ray to the action polygon's boundary (convex, or the fallback polyline)."""
+    if region.success:
+        return ray_convex_distance(origin, direction, region.normals, region.offsets)
+    hit = ray_polyline_distance(origin, direction, region.boundary_xy)
+    return 0.0 if math.isinf(hit) else hit
+
+
+def _goal_inside(region: Region, goal: np.ndarray) -> bool:
+    if region.success:
+        return bool(point_in_halfplanes(goal, region.normals, region.offsets))
+    return bool(points_in_polygon(goal, region.boundary_xy))

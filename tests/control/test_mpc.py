@@ -1,0 +1,259 @@
+"""Tests for the condensed jerk MPC (spec §5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjnav.control.mpc import Mpc, MpcConfig, prediction_matrices, simulate_triple_integrator
+from mjnav.geometry.polygon import orient_clockwise, points_in_convex
+from mjnav.geometry.region import compute_region
+from tests.geometry.scans import ANGLES, random_scan
+
+CFG = MpcConfig()
+SQUARE = orient_clockwise(np.array([[1.0, -1.0], [1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0]]))
+TOL = 1e-4
+
+
+def _rollout(state, jerks, dt=CFG.t_c):
+    out, s = [], np.asarray(state, dtype=float)
+    for u in jerks:
+        s = simulate_triple_integrator(s, u, dt)
+        out.append(s)
+    return np.array(out)
+
+
+def _cost(state, jerks, q_s, q_l, cfg=CFG):
+    traj = _rollout(state, jerks.reshape(2, -1).T, cfg.t_c)
+    p, v, a = traj[:, 0], traj[:, 1], traj[:, 2]
+    track = np.sum((p[0] - q_s) ** 2) + np.sum((p[-1] - q_l) ** 2)
+    return (
+        cfg.w_track * track
+        + cfg.w_jerk * np.sum(jerks**2)
+        + cfg.w_vel * np.sum(v[-1] ** 2)
+        + cfg.w_acc * np.sum(a**2)
+    )
+
+
+def _assert_feasible(res, state, polygon, cfg=CFG):
+    traj = _rollout(state, res.jerks, cfg.t_c)
+    assert np.allclose(traj[:, 0], res.positions, atol=1e-9)
+    assert np.max(np.abs(res.jerks)) <= cfg.j_max + TOL
+    assert np.max(np.abs(traj[:, 1])) <= cfg.v_max + TOL
+    assert np.max(np.abs(traj[:, 2])) <= cfg.a_max + TOL
+    if polygon is not None:
+        assert points_in_convex(traj[:, 0], polygon, tol=TOL).all()
+
+
+def _random_case(rng):
+    while True:
+        region = compute_region(random_scan(rng), ANGLES)
+        if region.success:
+            break
+    state = np.array([[0.0, 0.0], rng.uniform(-2.5, 2.5, 2), rng.uniform(-4, 4, 2)])
+    q_s, q_l = rng.uniform(-1, 1, 2), rng.uniform(-8, 8, 2)
+    return state, q_s, q_l, region.vertices
+
+
+def test_simulate_triple_integrator_is_exact():
+    """One step equals the closed-form constant-jerk motion."""
+    s = np.array([[1.0, -2.0], [0.5, 0.1], [-1.0, 2.0]])
+    j, t = np.array([3.0, -8.0]), 0.3
+    out = simulate_triple_integrator(s, j, t)
+    assert np.allclose(out[0], s[0] + s[1] * t + s[2] * t**2 / 2 + j * t**3 / 6)
+    assert np.allclose(out[1], s[1] + s[2] * t + j * t**2 / 2)
+    assert np.allclose(out[2], s[2] + j * t)
+    half = simulate_triple_integrator(simulate_triple_integrator(s, j, t / 2), j, t / 2)
+    assert np.allclose(half, out)
+
+
+def test_prediction_matrices_match_simulation():
+    """Condensed Φ, Γ reproduce step-by-step simulation."""
+    rng = np.random.default_rng(0)
+    phi, gamma = prediction_matrices(7, 0.1)
+    s0, u = rng.normal(size=3), rng.normal(size=7)
+    state = np.stack([s0, np.zeros(3)], axis=1)
+    traj = _rollout(state, np.stack([u, np.zeros(7)], axis=1))
+    for k in range(7):
+        assert np.allclose(phi[k] @ s0 + gamma[:, k] @ u, traj[k, :, 0])
+
+
+def test_config_rejects_bad_values_naming_the_field():
+    """Invalid config values raise ValueError naming the field."""
+    for field, value in [
+        ("horizon", 1),
+        ("t_c", 0.0),
+        ("w_jerk", 0.0),
+        ("solver", "cvx"),
+        ("cost_stop", "x"),
+    ]:
+        with pytest.raises(ValueError, match=field):
+            MpcConfig(**{field: value})
+
+
+def test_unconstrained_solution_is_the_cost_minimum():
+    """With inactive constraints the gradient of the spec cost (by finite differences) vanishes."""
+    mpc = Mpc()
+    state = np.array([[0.0, 0.0], [0.3, -0.2], [0.1, 0.0]])
+    q_s, q_l = np.array([0.04, -0.01]), np.array([0.5, -0.3])
+    res = mpc.solve(state, q_s, q_l, None)
+    assert res.ok and np.max(np.abs(res.jerks)) < CFG.j_max - 0.1
+    x = np.concatenate([res.jerks[:, 0], res.jerks[:, 1]])
+    grad = [
+        (_cost(state, x + e, q_s, q_l) - _cost(state, x - e, q_s, q_l)) / 2e-4 for e in np.eye(x.size) * 1e-4
+    ]
+    assert np.max(np.abs(grad)) < 1e-5
+
+
+def test_random_problems_satisfy_constraints_or_report_fallback():
+    """Over random states, references and scan polygons, solutions are feasible or flagged."""
+    rng = np.random.default_rng(1)
+    mpc = Mpc()
+    solved = 0
+    for _ in range(400):
+        state, q_s, q_l, poly = _random_case(rng)
+        res = mpc.solve(state, q_s, q_l, poly)
+        if res.ok:
+            _assert_feasible(res, state, poly)
+            solved += 1
+        else:
+            assert res.fallback in ("brake_previous", "no_polygon", "brake")
+    assert solved > 200
+    assert mpc.stats["solves"] == 400 and mpc.stats["solved"] == solved
+
+
+def test_empty_world_receding_horizon_reaches_the_reference():
+    """Repeated MPC steps in free space drive the robot to a fixed reachable point and stop it."""
+    mpc = Mpc()
+    goal = np.array([3.0, -2.0])
+    state = np.zeros((3, 2))
+    for _ in range(80):
+        rel = goal - state[0]
+        res = mpc.solve(np.stack([np.zeros(2), state[1], state[2]]), rel, rel, None, goal_inside=True)
+        assert res.ok
+        state = simulate_triple_integrator(state, res.u0, CFG.t_c)
+    assert np.linalg.norm(state[0] - goal) < 0.02 and np.linalg.norm(state[1]) < 0.05
+
+
+def test_reference_outside_polygon_keeps_trajectory_inside():
+    """A far reference outside the region still yields a plan inside the polygon, pressed to its edge."""
+    res = Mpc().solve(np.zeros((3, 2)), np.array([5.0, 0.0]), np.array([5.0, 0.0]), SQUARE)
+    assert res.ok
+    _assert_feasible(res, np.zeros((3, 2)), SQUARE)
+    assert res.positions[-1, 0] == pytest.approx(1.0, abs=1e-3)
+
+
+def test_infeasible_polygon_falls_back_without_raising():
+    """Too fast for the region: no previous plan -> re-solve without polygon; with one -> brake."""
+    fast = np.array([[0.0, 0.0], [2.5, 0.0], [0.0, 0.0]])
+    small = SQUARE * 0.3
+    mpc = Mpc()
+    res = mpc.solve(fast, np.zeros(2), np.zeros(2), small)
+    assert res.fallback == "no_polygon" and res.status == "fallback"
+    _assert_feasible(res, fast, None)
+    assert mpc.solve(np.zeros((3, 2)), np.zeros(2), np.zeros(2), small).ok
+    res = mpc.solve(fast, np.zeros(2), np.zeros(2), small)
+    assert res.fallback == "brake_previous" and res.u0[0] < 0
+    assert mpc.stats["no_polygon"] == 1 and mpc.stats["brake_previous"] == 1 and mpc.stats["failures"] == 2
+    mpc.reset()
+    assert mpc.solve(fast, np.zeros(2), np.zeros(2), small).fallback == "no_polygon"
+
+
+def test_infeasible_limits_brake():
+    """Speed beyond the limits (infeasible even without polygon) brakes: v and a driven towards 0."""
+    mpc = Mpc()
+    state = np.array([[0.0, 0.0], [3.0, -0.5], [0.0, 0.0]])
+    res = mpc.solve(state, np.ones(2), np.ones(2), SQUARE * 5)
+    assert res.fallback == "brake" and mpc.stats["brake"] == 1
+    assert res.u0[0] < -1.0 and np.max(np.abs(res.jerks)) <= CFG.j_max
+    assert np.linalg.norm(res.velocities[-1]) < 0.5 * np.linalg.norm(state[1])
+    assert np.max(np.abs(res.accelerations)) <= CFG.a_max
+
+
+@pytest.mark.parametrize("solver", ["daqp", "osqp", "quadprog"])
+def test_soft_constraint_absorbs_infeasibility(solver):
+    """With soft=True the too-fast case is solved with a positive slack instead of a fallback."""
+    fast = np.array([[0.0, 0.0], [2.5, 0.0], [0.0, 0.0]])
+    cfg = MpcConfig(soft=True, solver=solver)
+    res = Mpc(cfg).solve(fast, np.zeros(2), np.zeros(2), SQUARE * 0.3)
+    assert res.ok and res.slack > 0.1
+    feasible = Mpc(cfg).solve(np.zeros((3, 2)), np.array([5.0, 0]), np.array([5.0, 0]), SQUARE)
+    assert feasible.ok and feasible.slack < 1e-5
+    _assert_feasible(feasible, np.zeros((3, 2)), SQUARE)
+
+
+@pytest.mark.parametrize("other", ["osqp", "quadprog"])
+def test_backends_agree_with_daqp(other):
+    """OSQP and quadprog give DAQP's solution on the same QPs."""
+    rng = np.random.default_rng(2)
+    daqp_mpc, other_mpc = Mpc(), Mpc(MpcConfig(solver=other))
+    compared = 0
+    for _ in range(40):
+        state, q_s, q_l, poly = _random_case(rng)
+        a, b = daqp_mpc.solve(state, q_s, q_l, poly), other_mpc.solve(state, q_s, q_l, poly)
+        assert a.fallback == b.fallback
+        if a.ok:
+            assert np.allclose(a.jerks, b.jerks, atol=2e-3)
+            assert np.allclose(a.positions, b.positions, atol=1e-4)
+            compared += 1
+    assert compared > 20
+
+
+def test_dropping_unreachable_halfplanes_keeps_the_solution():
+    """drop_unreachable removes rows but returns the same plan as the full QP."""
+    rng = np.random.default_rng(3)
+    full, dropped = Mpc(MpcConfig(drop_unreachable=False)), Mpc()
+    for _ in range(100):
+        state, q_s, q_l, poly = _random_case(rng)
+        a, b = full.solve(state, q_s, q_l, poly), dropped.solve(state, q_s, q_l, poly)
+        assert a.fallback == b.fallback and b.rows <= a.rows
+        if a.ok:
+            assert np.allclose(a.jerks, b.jerks, atol=1e-5)
+
+
+def test_warm_start_gives_the_cold_solution():
+    """Warm-started DAQP returns the same plans as cold solves along a random sequence."""
+    rng = np.random.default_rng(4)
+    warm, cold = Mpc(), Mpc(MpcConfig(warm_start=False))
+    for _ in range(100):
+        state, q_s, q_l, poly = _random_case(rng)
+        a, b = warm.solve(state, q_s, q_l, poly), cold.solve(state, q_s, q_l, poly)
+        if a.ok and b.ok:
+            assert np.allclose(a.jerks, b.jerks, atol=1e-5)
+
+
+def test_cost_stop_goal_inside_option():
+    """cost_stop='goal_inside' matches 'always' when the goal is inside, differs otherwise."""
+    state = np.array([[0.0, 0.0], [1.0, 0.5], [0.5, 0.0]])
+    args = (state, np.array([0.1, 0.05]), np.array([1.0, 0.4]), SQUARE * 3)
+    always = Mpc().solve(*args)
+    paper = Mpc(MpcConfig(cost_stop="goal_inside"))
+    assert np.allclose(paper.solve(*args, goal_inside=True).jerks, always.jerks, atol=1e-8)
+    assert not np.allclose(paper.solve(*args, goal_inside=False).jerks, always.jerks, atol=1e-3)
+
+
+def test_osqp_pattern_grows_for_large_polygons():
+    """A polygon with more edges than the OSQP slots rebuilds the pattern once and still agrees."""
+    ang = -np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    poly = 0.8 * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    state = np.array([[0.0, 0.0], [1.5, 0.5], [0.0, 0.0]])
+    osqp_mpc = Mpc(MpcConfig(solver="osqp", max_halfplanes=8, drop_unreachable=False))
+    a = osqp_mpc.solve(state, np.array([2.0, 0]), np.array([2.0, 0.0]), poly)
+    b = Mpc().solve(state, np.array([2.0, 0]), np.array([2.0, 0.0]), poly)
+    assert osqp_mpc.stats["osqp_rebuilds"] == 1 and a.ok and b.ok
+    assert np.allclose(a.positions, b.positions, atol=1e-4)
+
+
+def test_invalid_inputs_raise_value_error():
+    """NaN/inf or badly shaped inputs raise ValueError at the API boundary."""
+    mpc = Mpc()
+    with pytest.raises(ValueError, match="non-finite"):
+        mpc.solve(np.full((3, 2), np.nan), np.zeros(2), np.zeros(2))
+    with pytest.raises(ValueError, match="non-finite"):
+        mpc.solve(np.zeros((3, 2)), np.array([np.inf, 0.0]), np.zeros(2))
+    with pytest.raises(ValueError, match="state"):
+        mpc.solve(np.zeros(6), np.zeros(2), np.zeros(2))
+    with pytest.raises(ValueError, match="polygon"):
+        mpc.solve(
+            np.zeros((3, 2)), np.zeros(2), np.zeros(2), np.array([[0.0, 1.0], [np.nan, 0.0], [1.0, 1.0]])
+        )
