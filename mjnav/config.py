@@ -62,6 +62,30 @@ class TaskConfig:
     reward: RewardConfig = RewardConfig()
     observation: ObservationConfig = ObservationConfig()
 
+    def __post_init__(self) -> None:
+        """Derive the action layer's copies of robot limits and timing from ``robot``/``timing``/``lidar``.
+
+        ``robot``, ``timing`` and ``lidar`` are the sources of truth; a copy set explicitly to a
+        different value (not its default) is an error naming both keys.
+        """
+        sources = {"t_c": ("timing.control_period", self.timing.control_period),
+                   "v_max": ("robot.v_max", self.robot.v_max), "a_max": ("robot.a_max", self.robot.a_max),
+                   "j_max": ("robot.j_max", self.robot.j_max), "jerk_max": ("robot.j_max", self.robot.j_max),
+                   "max_range": ("lidar.max_range", self.lidar.max_range)}
+        derived = {"mpc": ("t_c", "v_max", "a_max", "j_max"), "action": ("t_c", "jerk_max"),
+                   "region": ("max_range",)}
+        for section, fields in derived.items():
+            sub = getattr(self, section)
+            default = type(sub)()
+            changes = {}
+            for name in fields:
+                key, value = sources[name]
+                current = getattr(sub, name)
+                if current not in (value, getattr(default, name)):
+                    raise ValueError(f"{section}.{name}: {current} disagrees with {key} ({value}); set {key}")
+                changes[name] = value
+            object.__setattr__(self, section, dataclasses.replace(sub, **changes))
+
 
 
 def task_dir() -> Path:

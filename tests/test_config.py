@@ -106,3 +106,17 @@ def test_config_is_frozen_and_roundtrips() -> None:
 def test_bundled_stage_dir_has_seven_stages() -> None:
     """The stage folder ships stage1..stage7."""
     assert sorted(p.stem for p in task_dir().glob("stage*.yaml")) == [f"stage{i}" for i in range(1, 8)]
+
+
+def test_action_layer_limits_follow_robot_and_timing() -> None:
+    """Robot limits, control period and LiDAR range flow into the MPC, action and region configs."""
+    cfg = load_task("stage6", ["robot.v_max=2.0", "robot.j_max=6.0", "timing.control_period=0.05"])
+    assert cfg.mpc.v_max == 2.0 and cfg.mpc.j_max == 6.0 and cfg.action.jerk_max == 6.0
+    assert cfg.mpc.t_c == 0.05 and cfg.action.t_c == 0.05
+    assert load_task("stage6", ["lidar.max_range=8.0"]).region.max_range == 8.0
+
+
+def test_conflicting_copy_of_a_limit_is_rejected() -> None:
+    """Setting the MPC's copy of a robot limit to another value names both keys."""
+    with pytest.raises(ConfigError, match=r"mpc\.v_max.*robot\.v_max"):
+        load_task("stage6", ["mpc.v_max=3.0"])
