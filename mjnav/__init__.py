@@ -6,7 +6,13 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
+
+if not os.environ.get("DISPLAY"):
+    # Headless by default: without this dm_control tries GLFW first and warns on every import.
+    # EGL (Debian libegl1 + libgl1-mesa-dri) is the off-screen backend; see mjnav.eval.gl.
+    os.environ.setdefault("MUJOCO_GL", "egl")
 
 from mjnav.envs.registration import ENV_IDS, register_envs
 
