@@ -184,7 +184,7 @@ def test_stop_request_saves_after_the_iteration(tiny: TrainConfig, tmp_path: Pat
 
 
 def test_actor_and_critic_match_the_paper(tmp_path: Path) -> None:
-    """Default networks: 399-256-256-256-4 ReLU/ReLU/Hardswish actor, log-std -0.5, 320-wide critic, AdamW."""
+    """Default networks and PPO values: paper's actor/critic, log-std -0.5, AdamW, γ=λ=0.98, tuned entropy."""
     train = load_train(["num_envs=2", "workers=0", "steps_per_env=4", "minibatches=1"])
     env = make_fake_env(None, train)
     runner = build_runner(env, train, None)
@@ -196,7 +196,8 @@ def test_actor_and_critic_match_the_paper(tmp_path: Path) -> None:
     assert torch.allclose(actor.distribution.log_std_param, torch.full((ACT_DIM,), -0.5))
     assert [m.out_features for m in critic.mlp if isinstance(m, torch.nn.Linear)] == [320, 320, 320, 1]
     assert isinstance(runner.alg.optimizer, torch.optim.AdamW) and runner.alg.learning_rate == 1e-4
-    assert runner.alg.gamma == 0.98 and runner.alg.lam == 0.98 and runner.alg.entropy_coef == 0.05
+    assert runner.alg.gamma == 0.98 and runner.alg.lam == 0.98 and runner.alg.entropy_coef == 0.005
+    assert runner.alg.schedule == "adaptive" and runner.alg.desired_kl == 0.01
 
 
 def test_torchscript_export_matches_policy_mean(tiny: TrainConfig, tmp_path: Path) -> None:
