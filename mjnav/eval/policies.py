@@ -1,0 +1,245 @@
+"""Load a policy for evaluation by ``PATH_OR_NAME``.
+
+Accepted specs:
+
+* a TorchScript actor ``policy.pt`` (obs (399,) → the 4 raw action means);
+* an rsl-rl checkpoint ``model_<it>.pt``: the actor is rebuilt from ``actor_state_dict``
+  (``mlp.<i>.weight/bias`` linear layers; ``obs_normalizer._mean/_std`` if present, rsl-rl's
+  eps 1e-2), with the hidden activations from the run's ``config.yaml``
+  (``train.policy.actor_activations``) or the spec's (relu, relu, hardswish);
+* a run directory (``runs/<name>`` or just ``<name>`` under ``runs/``): its ``policy.pt``, else
+  its latest checkpoint;
+* a baseline name: ``mpc_goal``, ``teb``, ``dwa``, ``random_jerk`` (planners, see
+  :mod:`mjnav.baselines`) or ``random`` (random raw actions through the learned action path).
+
+Learned policies act through the normal action path, deterministically: the raw action is the
+network's mean (the environment applies the sigmoid). Every loaded policy is an :class:`Agent`:
+``begin(task, episode_seed)`` before each episode, then ``act(observation)`` every step.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mjnav.baselines import PLANNERS, RandomActionPolicy, make_planner
+
+__all__ = [
+    "BASELINES",
+    "Agent",
+    "TimedPlanner",
+    "build_actor",
+    "load_policy",
+    "policy_name",
+    "resolve_checkpoint",
+]
+
+if TYPE_CHECKING:
+    import torch
+
+    from mjnav.config import TaskConfig
+    from mjnav.tasks.core import Planner, PlannerInput
+    from mjnav.tasks.nav import CrowdNavTask
+
+#: Names accepted besides paths.
+BASELINES = (*PLANNERS, "random")
+_DEFAULT_ACTIVATIONS = ("relu", "relu", "hardswish")
+
+
+class TimedPlanner:
+    """Wraps a planner and records the wall time of each ``act`` call (seconds)."""
+
+    def __init__(self, planner: Planner) -> None:
+        """Wrap ``planner`` (a :class:`mjnav.tasks.core.Planner`)."""
+        self.planner = planner
+        self.times: list[float] = []
+
+    def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
+        """Forward to the planner and clear the timings."""
+        self.times = []
+        self.planner.reset(config, rng)
+
+    def act(self, inp: PlannerInput) -> np.ndarray:
+        """Forward to the planner, timing it."""
+        start = time.perf_counter()
+        jerk = self.planner.act(inp)
+        self.times.append(time.perf_counter() - start)
+        return jerk
+
+
+class Agent:
+    """A policy bound to the evaluation loop (learned actor or baseline planner).
+
+    Attributes:
+        name: Display name (baseline name or the loaded file's run/name).
+        kind: ``learned``, ``random`` or ``planner``.
+        source: What was loaded (a path or the baseline name).
+    """
+
+    def __init__(
+        self, name: str, kind: str, source: str, actor: Callable | None = None,
+        planner: Planner | None = None,
+    ) -> None:
+        """Use :func:`load_policy` rather than this constructor."""
+        self.name, self.kind, self.source = name, kind, source
+        self._actor = actor
+        self.planner = TimedPlanner(planner) if planner is not None else None
+
+    def begin(self, task: CrowdNavTask, episode_seed: int) -> None:
+        """Install on ``task`` (a CrowdNavTask) before its reset for ``episode_seed``."""
+        task.planner = self.planner
+        if isinstance(self._actor, RandomActionPolicy):
+            self._actor.reset(np.random.default_rng([episode_seed, 1]))
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """The (4,) float32 raw action (zeros for planners: the task ignores it)."""
+        if self._actor is None:
+            return np.zeros(4, dtype=np.float32)
+        return np.asarray(self._actor(observation), dtype=np.float32).reshape(4)
+
+    def plan_times_ms(self) -> list[float]:
+        """Planner wall times of the current episode, ms (empty for learned policies)."""
+        return [1e3 * t for t in self.planner.times] if self.planner is not None else []
+
+
+# ---------------------------------------------------------------------------- torch actors
+
+
+def _torch_actor(module: torch.nn.Module) -> Callable[[np.ndarray], np.ndarray]:
+    import torch
+
+    module.eval()
+
+    def act(observation: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            x = torch.as_tensor(np.asarray(observation, dtype=np.float32).reshape(1, -1))
+            return module(x).reshape(-1)[:4].numpy()
+
+    return act
+
+
+def _activations(checkpoint: Path) -> Sequence[str]:
+    config = checkpoint.parent / "config.yaml"
+    if config.exists():
+        import yaml
+
+        saved = yaml.safe_load(config.read_text()) or {}
+        names = (saved.get("train") or {}).get("policy", {}).get("actor_activations")
+        if names:
+            return tuple(names)
+    return _DEFAULT_ACTIVATIONS
+
+
+def build_actor(state: dict, activations: Sequence[str]) -> torch.nn.Module:
+    """A ``torch.nn.Module`` (normaliser + MLP) from an rsl-rl ``actor_state_dict``.
+
+    Raises:
+        ValueError: If the state has no ``mlp.<i>.weight`` layers or the activations do not fit.
+    """
+    import torch
+
+    from mjnav.train.model import make_activation
+
+    index = sorted(int(m.group(1)) for k in state if (m := re.fullmatch(r"mlp\.(\d+)\.weight", k)))
+    if not index or len(activations) != len(index) - 1:
+        raise ValueError(f"checkpoint actor has {len(index)} linear layers, expected {len(activations) + 1}")
+    layers: list[torch.nn.Module] = []
+    for i, key in enumerate(index):
+        weight, bias = state[f"mlp.{key}.weight"], state[f"mlp.{key}.bias"]
+        linear = torch.nn.Linear(weight.shape[1], weight.shape[0])
+        linear.load_state_dict({"weight": weight, "bias": bias})
+        layers.append(linear)
+        if i < len(activations):
+            layers.append(make_activation(activations[i]))
+    mlp = torch.nn.Sequential(*layers)
+    if "obs_normalizer._mean" not in state:
+        return mlp
+
+    class Normalizer(torch.nn.Module):
+        """rsl-rl's EmpiricalNormalization at inference: (x − mean)/(std + 1e-2)."""
+
+        def __init__(self, mean: torch.Tensor, std: torch.Tensor) -> None:
+            super().__init__()
+            self.register_buffer("mean", mean.float())
+            self.register_buffer("std", std.float())
+
+        def forward(self, x: torch.Tensor) -> torch.Tensor:
+            return (x - self.mean) / (self.std + 1e-2)
+
+    return torch.nn.Sequential(Normalizer(state["obs_normalizer._mean"], state["obs_normalizer._std"]), mlp)
+
+
+def resolve_checkpoint(path: str | Path) -> Path:
+    """The file to load for a path: a file itself, or a run directory's policy.pt / latest model.
+
+    Raises:
+        FileNotFoundError: No policy file found.
+    """
+    path = Path(path)
+    if path.is_file():
+        return path
+    if path.is_dir():
+        if (path / "policy.pt").is_file():
+            return path / "policy.pt"
+        found = [(int(m.group(1)), p) for p in path.glob("model_*.pt")
+                 if (m := re.fullmatch(r"model_(\d+)\.pt", p.name))]
+        if found:
+            return max(found)[1]
+    raise FileNotFoundError(f"no policy.pt or model_<it>.pt at {path}")
+
+
+def _display_name(path: Path) -> str:
+    return path.parent.name if path.name == "policy.pt" else f"{path.parent.name}/{path.stem}"
+
+
+def _find(spec: str | Path, runs_dir: str | Path) -> Path:
+    path = Path(spec)
+    if not path.exists() and (Path(runs_dir) / str(spec)).exists():
+        path = Path(runs_dir) / str(spec)
+    if not path.exists():
+        known = ", ".join(BASELINES)
+        raise FileNotFoundError(f"policy {str(spec)!r}: not a baseline ({known}) nor an existing path")
+    return resolve_checkpoint(path)
+
+
+def policy_name(spec: str | Path, runs_dir: str | Path = "runs") -> str:
+    """Display name of a policy spec without loading it (baseline name or ``run[/model_<it>]``)."""
+    return str(spec) if str(spec) in BASELINES else _display_name(_find(spec, runs_dir))
+
+
+def _load_learned(path: Path) -> Agent:
+    import torch
+
+    name = _display_name(path)
+    if re.fullmatch(r"model_\d+\.pt", path.name):
+        state = torch.load(str(path), map_location="cpu", weights_only=False)
+        module = build_actor(state["actor_state_dict"], _activations(path))
+    else:
+        module = torch.jit.load(str(path), map_location="cpu")
+    return Agent(name, "learned", str(path), actor=_torch_actor(module))
+
+
+def load_policy(spec: str | Path, runs_dir: str | Path = "runs") -> Agent:
+    """Load a policy by ``PATH_OR_NAME`` (see the module docstring).
+
+    Args:
+        spec: Baseline name, file or run directory (or a run name under ``runs_dir``).
+        runs_dir: Where run names are looked up.
+
+    Returns:
+        The :class:`Agent`.
+
+    Raises:
+        FileNotFoundError: Neither a baseline nor a loadable file/run.
+    """
+    text = str(spec)
+    if text == "random":
+        return Agent("random", "random", "random", actor=RandomActionPolicy())
+    if text in PLANNERS:
+        return Agent(text, "planner", text, planner=make_planner(text))
+    return _load_learned(_find(text, runs_dir))

@@ -1,0 +1,362 @@
+"""Held-out evaluation: the same scenario set for every policy, run in parallel.
+
+Scenario ``i`` of a task has the episode seed ``HELD_OUT_BASE + seed_offset + i`` with
+``HELD_OUT_BASE = 2**32``. Training environments draw their episode seeds with
+``RandomState.randint(0, 2**31 − 1)`` (:meth:`mjnav.tasks.nav.CrowdNavTask.initialize_episode`),
+so held-out seeds never occur in training, and every policy evaluated with the same
+``seed_offset`` sees exactly the same layouts and crowd motion (paired comparisons; planners get
+their own random stream, ``default_rng([seed, 1])``, so they cannot shift the scenario).
+
+Each worker process builds its environment and loads the policy once, then runs episodes by
+index. Results: one JSON line per episode (``<task>.jsonl``), ``summary.csv`` and
+``summary.md`` (one row per task) in the output folder.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing as mp
+import os
+import subprocess
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from mjnav.eval.metrics import (
+    EpisodeMetrics,
+    aggregate,
+    episode_metrics,
+    format_markdown,
+    summary_row,
+    write_csv,
+)
+
+__all__ = [
+    "HELD_OUT_BASE",
+    "EpisodeTrace",
+    "EvalSpec",
+    "evaluate",
+    "evaluate_tasks",
+    "git_commit",
+    "held_out_seed",
+    "run_episode",
+]
+
+if TYPE_CHECKING:
+    from mjnav.envs.gym_env import NavGymEnv
+    from mjnav.eval.policies import Agent
+    from mjnav.sim import NavSim
+
+#: First held-out episode seed (training seeds are < 2**31).
+HELD_OUT_BASE = 2**32
+#: Seed of the untimed warm-up steps of each worker (neither a training nor a held-out seed).
+WARM_UP_SEED = HELD_OUT_BASE - 1
+
+
+def held_out_seed(index: int, seed_offset: int = 0) -> int:
+    """Episode seed of held-out scenario ``index``."""
+    return HELD_OUT_BASE + int(seed_offset) + int(index)
+
+
+@dataclasses.dataclass(frozen=True)
+class EvalSpec:
+    """What to evaluate.
+
+    Attributes:
+        task: Stage name or YAML path.
+        policy: ``PATH_OR_NAME`` (see :func:`mjnav.eval.policies.load_policy`).
+        episodes: Number of held-out scenarios.
+        seed_offset: Offset into the held-out seed range.
+        overrides: Dotted task overrides (``["crowd.count=25"]``).
+        workers: Processes (0 or 1 = in this process).
+    """
+
+    task: str
+    policy: str
+    episodes: int = 1000
+    seed_offset: int = 0
+    overrides: tuple[str, ...] = ()
+    workers: int = 1
+
+
+@dataclasses.dataclass
+class EpisodeTrace:
+    """Per-step record of one episode (world frame, SI units).
+
+    Attributes:
+        positions: (T+1, 2) robot positions.
+        velocities: (T+1, 2) robot velocities.
+        pedestrians: (T+1, P, 3) pedestrian circles ``[x, y, r]``.
+    """
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    pedestrians: np.ndarray
+
+
+def git_commit(path: str | Path | None = None) -> str:
+    """HEAD commit of the repository holding ``path`` (``unknown`` outside git)."""
+    where = Path(path) if path else Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=where, capture_output=True, text=True,
+                             timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return out.stdout.strip() if out.returncode == 0 else "unknown"
+
+
+def _segment_gap(p: np.ndarray, segments: np.ndarray) -> float:
+    """Distance from p to the nearest segment ``[x0, y0, x1, y1]``, metres."""
+    if len(segments) == 0:
+        return np.inf
+    a, b = segments[:, :2], segments[:, 2:]
+    ab = b - a
+    t = np.clip(np.sum((p - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0.0, 1.0)
+    closest = a + t[:, None] * ab
+    return float(np.min(np.hypot(*(p - closest).T)))
+
+
+def _clearances(p: np.ndarray, sim: NavSim, radius: float) -> tuple[float, float]:
+    obst = _segment_gap(p, sim.segments) - radius
+    circles = sim.pedestrian_circles()
+    if len(circles) == 0:
+        return obst, np.nan
+    return obst, float(np.min(np.hypot(*(circles[:, :2] - p).T) - circles[:, 2])) - radius
+
+
+class _Recorder:
+    """Collects the per-step quantities of one episode."""
+
+    def __init__(self, env: NavGymEnv, agent: Agent) -> None:
+        """Snapshot the cumulative counters; call before the episode's reset."""
+        self.env, self.agent, self.task = env, agent, env.task
+        self.radius = env.task.config.robot.radius
+        self.positions, self.velocities, self.peds, self.obst, self.ped = [], [], [], [], []
+        self.solve: list[float] = []
+        self.counters = dict(self.task.core.counters)
+        self.planner_stats = dict(getattr(getattr(agent.planner, "planner", None), "stats", {}) or {})
+
+    def sample(self) -> None:
+        p, v, _ = self.task.sim.robot_state(self.env.physics)
+        self.positions.append(p)
+        self.velocities.append(v)
+        self.peds.append(self.task.sim.pedestrian_circles().copy())
+        obst, ped = _clearances(p, self.task.sim, self.radius)
+        self.obst.append(obst)
+        self.ped.append(ped)
+        record = self.task.core.record
+        if record is not None and self.agent.planner is None:
+            self.solve.append(1e3 * record.solve_time_s)
+
+    def finish(self, outcome: str) -> tuple[EpisodeMetrics, dict[str, int], EpisodeTrace]:
+        core = self.task.core.counters
+        stats = getattr(getattr(self.agent.planner, "planner", None), "stats", {}) or {}
+        stats = {k: int(v - self.planner_stats.get(k, 0)) for k, v in stats.items()}
+        fallbacks = core["fallbacks"] - self.counters["fallbacks"] + stats.get("fallbacks", 0)
+        solve = self.solve if self.agent.planner is None else self.agent.plan_times_ms()
+        metrics = episode_metrics(
+            np.array(self.positions), np.array(self.velocities), self.task.config.timing.control_period,
+            outcome,
+            obstacle_clearances=self.obst, pedestrian_clearances=self.ped, solve_times_ms=solve,
+            fallbacks=fallbacks, region_failures=core["region_failures"] - self.counters["region_failures"],
+            scans=len(self.positions),
+        )
+        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds))
+        return metrics, stats, trace
+
+
+def _stack_peds(peds: list[np.ndarray]) -> np.ndarray:
+    count = max((len(p) for p in peds), default=0)
+    out = np.full((len(peds), count, 3), np.nan)
+    for k, p in enumerate(peds):
+        out[k, : len(p)] = p
+    return out
+
+
+def run_episode(
+    env: NavGymEnv, agent: Agent, seed: int
+) -> tuple[EpisodeMetrics, dict[str, Any], EpisodeTrace]:
+    """Run one episode of scenario ``seed`` to its end.
+
+    Args:
+        env: A :class:`mjnav.envs.gym_env.NavGymEnv`.
+        agent: A loaded :class:`mjnav.eval.policies.Agent`.
+        seed: Episode seed.
+
+    Returns:
+        (metrics, extras with ``planner_stats``, ``start``, ``goal``, ``trace``).
+    """
+    agent.begin(env.task, seed)
+    rec = _Recorder(env, agent)
+    obs, _ = env.reset(options={"episode_seed": seed})
+    rec.sample()
+    info = {"outcome": "running"}
+    done = False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(agent.act(obs))
+        rec.sample()
+        done = terminated or truncated
+    metrics, stats, trace = rec.finish(info["outcome"])
+    layout = env.task.layout
+    extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist()}
+    return metrics, extras, trace
+
+
+# ---------------------------------------------------------------------------- workers
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(spec: EvalSpec) -> None:
+    from mjnav.envs.gym_env import NavGymEnv
+    from mjnav.eval.policies import load_policy
+
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:
+        pass
+    env = _WORKER["env"] = NavGymEnv(spec.task, overrides=list(spec.overrides) or None, seed=0)
+    agent = _WORKER["agent"] = load_policy(spec.policy)
+    _WORKER["spec"] = spec
+    _warm_up(env, agent)
+
+
+def _warm_up(env: NavGymEnv, agent: Agent, steps: int = 3) -> None:
+    """A few steps of a seed outside the held-out set, so JIT compilation is not timed."""
+    agent.begin(env.task, WARM_UP_SEED)
+    obs, _ = env.reset(options={"episode_seed": WARM_UP_SEED})
+    for _ in range(steps):
+        obs, _, terminated, truncated, _ = env.step(agent.act(obs))
+        if terminated or truncated:
+            break
+
+
+def _work(index: int) -> dict[str, Any]:
+    env, agent, spec = _WORKER["env"], _WORKER["agent"], _WORKER["spec"]
+    seed = held_out_seed(index, spec.seed_offset)
+    metrics, extras, _ = run_episode(env, agent, seed)
+    return {"index": index, "seed": seed, "outcome": metrics.outcome, "metrics": metrics.to_dict(), **extras}
+
+
+def _results(spec: EvalSpec) -> Iterator[dict[str, Any]]:
+    indices = range(spec.episodes)
+    if spec.workers <= 1:
+        _init_worker(spec)
+        yield from map(_work, indices)
+        return
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(spec.workers, initializer=_init_worker, initargs=(spec,)) as pool:
+        chunk = max(1, min(8, spec.episodes // (4 * spec.workers)))
+        yield from pool.imap_unordered(_work, indices, chunksize=chunk)
+
+
+def _progress(items: Iterator, total: int, label: str) -> Iterator:
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        tqdm = None
+    if tqdm is not None and sys.stderr.isatty():
+        yield from tqdm(items, total=total, desc=label, unit="ep")
+        return
+    for k, item in enumerate(items, 1):
+        if k == total or k % max(1, total // 20) == 0:
+            print(f"{label}: {k}/{total} episodes", file=sys.stderr, flush=True)
+        yield item
+
+
+def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool = True) -> dict[str, Any]:
+    """Evaluate one policy on one task's held-out scenarios.
+
+    Args:
+        spec: Task, policy, episode count, seed offset, workers.
+        out_dir: Folder for ``<task>.jsonl`` (one line per episode, by index); None writes nothing.
+        progress: Show a progress bar (tqdm) or a plain counter on stderr.
+
+    Returns:
+        The summary row (:func:`mjnav.eval.metrics.summary_row` plus ``task_version``,
+        ``commit``, ``seed_offset``).
+    """
+    from mjnav.envs.factory import resolve_config
+    from mjnav.eval.policies import policy_name as describe
+
+    config = resolve_config(spec.task, list(spec.overrides) or None)
+    policy_name = describe(spec.policy)
+    stream = _results(spec)
+    rows = sorted(_progress(stream, spec.episodes, f"{config.name}/{policy_name}") if progress else stream,
+                  key=lambda r: r["index"])
+    commit = git_commit()
+    common = {"task": config.name, "task_version": config.version, "policy": policy_name,
+              "policy_source": spec.policy, "commit": commit, "overrides": list(spec.overrides)}
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / f"{config.name}.jsonl", "w", encoding="utf-8") as f:
+            f.writelines(json.dumps({**common, **row}) + "\n" for row in rows)
+    summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
+    return {**summary_row(summary, config.name, policy_name), "task_version": config.version,
+            "commit": commit, "seed_offset": spec.seed_offset}
+
+
+def evaluate_tasks(
+    specs: Sequence[EvalSpec], out_dir: str | Path, progress: bool = True
+) -> list[dict[str, Any]]:
+    """Evaluate several tasks; writes per-task JSONL plus ``summary.csv`` and ``summary.md``."""
+    rows = [evaluate(spec, out_dir, progress) for spec in specs]
+    out = Path(out_dir)
+    write_csv(rows, out / "summary.csv")
+    (out / "summary.md").write_text(format_markdown(rows), encoding="utf-8")
+    return rows
+
+
+# ---------------------------------------------------------------------------- command line
+
+_USAGE = ("usage: evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6] "
+          "[workers=N] [out=DIR] [seed_offset=0] [task.KEY=VALUE ...]")
+
+
+def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
+    """``key=value`` arguments → evaluation specs (one per task) and the output folder.
+
+    Raises:
+        ValueError: On an unknown key, a missing policy or a malformed argument.
+    """
+    args: dict[str, str] = {}
+    overrides: list[str] = []
+    for item in argv:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"expected key=value, got {item!r}\n{_USAGE}")
+        if key.startswith("task."):
+            overrides.append(f"{key[5:]}={value}")
+        elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset"):
+            args[key] = value
+        else:
+            raise ValueError(f"unknown argument {key!r}\n{_USAGE}")
+    if "policy" not in args:
+        raise ValueError(f"policy= is required\n{_USAGE}")
+    tasks = args.get("tasks", args.get("task", "stage6")).split(",")
+    workers = int(args.get("workers", os.cpu_count() or 1))
+    episodes, offset = int(args.get("episodes", 1000)), int(args.get("seed_offset", 0))
+    specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers)
+             for t in tasks if t.strip()]
+    out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
+    return specs, out
+
+
+def main(argv: Sequence[str]) -> int:
+    """Command-line entry: evaluate, write the files, print the table; returns the exit code."""
+    try:
+        specs, out = parse_args(argv)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    rows = evaluate_tasks(specs, out)
+    print(format_markdown(rows), end="")
+    print(f"wrote {out}/summary.csv, {out}/summary.md and one JSONL per task")
+    return 0

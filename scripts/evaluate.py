@@ -1,0 +1,20 @@
+"""Evaluate a policy on held-out scenarios (spec §10).
+
+    python scripts/evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6,stage7]
+                               [workers=N] [out=DIR] [seed_offset=0] [task.crowd.count=25]
+
+PATH_OR_NAME: a run folder, ``policy.pt``, ``model_<it>.pt`` or a baseline (mpc_goal, teb, dwa,
+random, random_jerk). Scenario i uses the episode seed 2**32 + seed_offset + i (never a training
+seed), so every policy sees the same scenarios. Writes ``<task>.jsonl`` (one line per episode),
+``summary.csv`` and ``summary.md`` into ``out`` (default ``evals/<policy>``) and prints the table.
+See :mod:`mjnav.eval.runner`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from mjnav.eval.runner import main
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,68 @@
+"""Figures: one episode's paths (the paper's qualitative figure) or a run's learning curve.
+
+    python scripts/plot.py episode task=stage6 policy=PATH_OR_NAME [seed=0] [out=episode.png]
+                           [task.KEY=VALUE ...]
+    python scripts/plot.py curve run=runs/stage6-... [out=curve.png] [smooth=10]
+
+``seed`` is the held-out scenario index (episode seed 2**32 + seed, as scripts/evaluate.py);
+``episode_seed=K`` gives a raw episode seed. See :mod:`mjnav.eval.plots`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def _parse(argv: list[str]) -> tuple[dict[str, str], list[str]]:
+    args, overrides = {}, []
+    for item in argv:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ValueError(f"expected key=value, got {item!r}")
+        if key.startswith("task."):
+            overrides.append(f"{key[5:]}={value}")
+        else:
+            args[key] = value
+    return args, overrides
+
+
+def _episode(args: dict[str, str], overrides: list[str]) -> str:
+    from mjnav.envs.gym_env import NavGymEnv
+    from mjnav.eval.plots import plot_episode
+    from mjnav.eval.policies import load_policy
+    from mjnav.eval.runner import held_out_seed, run_episode
+
+    env = NavGymEnv(args.get("task", "stage6"), overrides=overrides or None, seed=0)
+    agent = load_policy(args.get("policy", "mpc_goal"))
+    seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
+    metrics, _, trace = run_episode(env, agent, seed)
+    title = f"{env.config.name} · {agent.name} · seed {seed} · {metrics.outcome} in {metrics.time_s:.1f} s"
+    out = plot_episode(trace.positions, trace.pedestrians, env.task.layout, env.config.arena.size,
+                       args.get("out", "episode.png"), env.config.timing.control_period, title=title)
+    return f"{out}: {metrics.outcome}, {metrics.time_s:.1f} s, {metrics.distance_m:.2f} m"
+
+
+def main(argv: list[str]) -> int:
+    """Dispatch to ``episode`` or ``curve``."""
+    if not argv or argv[0] not in ("episode", "curve"):
+        print(__doc__, file=sys.stderr)
+        return 2
+    try:
+        args, overrides = _parse(argv[1:])
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    if argv[0] == "episode":
+        print(_episode(args, overrides))
+        return 0
+    from mjnav.eval.plots import plot_learning_curve
+
+    if "run" not in args:
+        print("error: curve needs run=RUN_DIR", file=sys.stderr)
+        return 2
+    print(plot_learning_curve(args["run"], args.get("out", "curve.png"), int(args.get("smooth", 10))))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,94 @@
+"""Baselines: reach the goal in an empty room, never raise on degenerate inputs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjnav.baselines import PLANNERS, make_planner
+from mjnav.baselines.tracking import Limits, brake, track_velocity
+from mjnav.config import load_task
+from mjnav.geometry.raycast import beam_angles
+from mjnav.geometry.region import compute_region
+from mjnav.tasks.core import PlannerInput
+
+GOAL_PLANNERS = ("mpc_goal", "teb", "dwa")
+
+
+@pytest.fixture(scope="module")
+def empty_env():
+    from mjnav.envs.gym_env import NavGymEnv
+
+    env = NavGymEnv("stage1", overrides=["layout.start_goal_max_distance=6.0"], seed=0)
+    yield env
+    env.close()
+
+
+@pytest.mark.parametrize("name", GOAL_PLANNERS)
+def test_reaches_goal_in_empty_room(empty_env, name):
+    """In stage 1 (no obstacles) each goal-directed baseline succeeds within 15 s."""
+    empty_env.task.planner = make_planner(name)
+    for seed in (11, 12):
+        empty_env.reset(options={"episode_seed": seed})
+        for _ in range(150):
+            _, _, terminated, truncated, info = empty_env.step(np.zeros(4, np.float32))
+            if terminated or truncated:
+                break
+        assert info["outcome"] == "success", f"{name} seed {seed}: {info['outcome']}"
+    empty_env.task.planner = None
+
+
+def _input(scan: np.ndarray, region_scan: np.ndarray, time: float) -> PlannerInput:
+    angles = beam_angles(360)
+    region = compute_region(region_scan, angles)
+    return PlannerInput(scan, angles, np.array([1.0, 2.0]), np.array([1.0, -0.5]), np.array([0.5, 0.2]),
+                        np.array([4.0, 2.0]), region, time)
+
+
+DEGENERATE = {
+    "all_zero": (np.zeros(360), np.zeros(360)),
+    "all_max": (np.full(360, 10.0), np.full(360, 10.0)),
+    "nan_and_inf": (np.where(np.arange(360) % 2 == 0, np.nan, np.inf), np.full(360, 10.0)),
+    "wrong_length": (np.ones(7), np.full(360, 1.0)),
+    "touching": (np.full(360, 0.2), np.full(360, 0.2)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+@pytest.mark.parametrize("case", sorted(DEGENERATE))
+def test_degenerate_scans_never_raise(name, case):
+    """Degenerate scans give a finite jerk within ±8 m/s³ (a brake at worst), never an exception."""
+    planner = make_planner(name)
+    planner.reset(load_task("stage5"), np.random.default_rng(0))
+    scan, region_scan = DEGENERATE[case]
+    for step in range(3):
+        inp = _input(scan, region_scan, time=0.1 * step)
+        jerk = planner.act(inp)
+        assert jerk.shape == (2,) and np.all(np.isfinite(jerk)) and np.all(np.abs(jerk) <= 8.0 + 1e-9)
+    if name in ("teb", "dwa") and case in ("nan_and_inf", "wrong_length"):
+        assert planner.stats["failures"] >= 1
+
+
+def test_tracker_reaches_velocity_without_overshoot():
+    """The jerk-limited tracker settles on the commanded velocity within the limits."""
+    lim = Limits()
+    v, a = np.zeros(2), np.zeros(2)
+    peak = 0.0
+    for _ in range(40):
+        j = track_velocity(v, a, np.array([2.5, -1.0]), lim)
+        assert np.all(np.abs(j) <= lim.j_max + 1e-12)
+        v, a = v + a * 0.1 + j * 0.005, a + j * 0.1
+        peak = max(peak, float(np.max(np.abs(v))))
+        assert np.all(np.abs(a) <= lim.a_max + 1e-9)
+    assert np.allclose(v, [2.5, -1.0], atol=0.02)
+    assert peak <= 2.5 + 0.05
+
+
+def test_brake_stops():
+    """Braking from 2.5 m/s stops the robot within 2 s."""
+    lim = Limits()
+    v, a = np.array([2.5, 2.5]), np.zeros(2)
+    for _ in range(20):
+        j = brake(v, a, lim)
+        v, a = v + a * 0.1 + j * 0.005, a + j * 0.1
+    assert np.all(np.abs(v) < 0.05)

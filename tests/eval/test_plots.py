@@ -1,0 +1,41 @@
+"""Figures: the per-episode path figure and the learning curve are written as PNG."""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+
+from mjnav.eval.plots import load_scalars, plot_episode, plot_learning_curve
+
+
+def _is_png(path) -> bool:
+    return path.exists() and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_episode_figure(tmp_path):
+    """A synthetic episode (robot, two pedestrians, one obstacle) gives a PNG."""
+    t = np.linspace(0.0, 3.0, 31)
+    robot = np.column_stack([-3 + 2 * t, np.zeros_like(t)])
+    peds = np.stack([np.column_stack([np.zeros_like(t), -2 + 0.5 * t, np.full_like(t, 0.3)]),
+                     np.column_stack([2 - 0.4 * t, np.full_like(t, 2.0), np.full_like(t, 0.2)])], axis=1)
+    layout = types.SimpleNamespace(start=np.array([-3.0, 0.0]), goal=np.array([3.0, 0.0]),
+                                   obstacle_polygons=(np.array([[1.0, -3.0], [2.0, -3.0], [1.5, -2.0]]),))
+    out = plot_episode(robot, peds, layout, (10.0, 10.0), tmp_path / "ep.png", title="synthetic")
+    assert _is_png(out)
+
+
+def test_learning_curve_from_events(tmp_path):
+    """TensorBoard scalars episode/success and episode/return become a two-panel PNG."""
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(log_dir=str(tmp_path))
+    for it in range(30):
+        writer.add_scalar("episode/success", min(1.0, it / 20), it)
+        writer.add_scalar("episode/return", 10.0 * it, it)
+    writer.close()
+    (tmp_path / "config.yaml").write_text("train:\n  num_envs: 4\n  steps_per_env: 8\n")
+    scalars = load_scalars(tmp_path)
+    assert len(scalars["episode/success"][0]) == 30
+    out = plot_learning_curve(tmp_path, tmp_path / "curve.png")
+    assert _is_png(out)
