@@ -9,10 +9,12 @@ from __future__ import annotations
 import os
 from typing import Any
 
-if not os.environ.get("DISPLAY"):
+if not os.environ.get("DISPLAY") and "MUJOCO_GL" not in os.environ:
     # Headless by default: without this dm_control tries GLFW first and warns on every import.
-    # EGL (Debian libegl1 + libgl1-mesa-dri) is the off-screen backend; see mjnav.eval.gl.
-    os.environ.setdefault("MUJOCO_GL", "egl")
+    # EGL (Debian libegl1 + libgl1-mesa-dri) is the off-screen backend; mjnav.eval.gl still falls
+    # back to OSMesa for rendering because the marker says the choice was not the user's.
+    os.environ["MUJOCO_GL"] = "egl"
+    os.environ["MJNAV_GL_DEFAULTED"] = "1"
 
 from mjnav.envs.registration import ENV_IDS, register_envs
 

@@ -27,6 +27,8 @@ __all__ = [
     "RobotConfig",
     "TimingConfig",
     "apply_overrides",
+    "check",
+    "split_args",
     "from_dict",
     "merge",
     "parse_override",
@@ -38,14 +40,18 @@ class ConfigError(ValueError):
     """A config key or value is invalid; the message names the key and source."""
 
 
-def _check(cond: bool, name: str, msg: str) -> None:
+def check(cond: bool, name: str, msg: str) -> None:
+    """Raise ``ValueError("name: msg")`` unless ``cond`` (config validation in ``__post_init__``)."""
     if not cond:
         raise ValueError(f"{name}: {msg}")
 
 
+
+
+
 def _check_range(pair: tuple[float, float], name: str, low: float = 0.0) -> None:
-    _check(len(pair) == 2, name, "expects [min, max]")
-    _check(low <= pair[0] <= pair[1], name, f"needs {low} <= min <= max, got {list(pair)}")
+    check(len(pair) == 2, name, "expects [min, max]")
+    check(low <= pair[0] <= pair[1], name, f"needs {low} <= min <= max, got {list(pair)}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,9 +69,9 @@ class ArenaConfig:
     wall_height: float = 0.6
 
     def __post_init__(self) -> None:
-        _check(len(self.size) == 2 and min(self.size) >= 2.0, "size", "needs two extents >= 2 m")
-        _check(self.wall_thickness > 0, "wall_thickness", "must be > 0")
-        _check(self.wall_height > 0, "wall_height", "must be > 0")
+        check(len(self.size) == 2 and min(self.size) >= 2.0, "size", "needs two extents >= 2 m")
+        check(self.wall_thickness > 0, "wall_thickness", "must be > 0")
+        check(self.wall_height > 0, "wall_height", "must be > 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,12 +99,12 @@ class ObstacleConfig:
     height: float = 0.6
 
     def __post_init__(self) -> None:
-        _check(self.count >= 0, "count", "must be >= 0")
-        _check(self.slots == 0 or self.slots >= self.count, "slots", "must be 0 (= count) or >= count")
-        _check(self.circumradius > 0, "circumradius", "must be > 0")
-        _check(0 <= self.min_area < self.max_area, "min_area", "needs 0 <= min_area < max_area")
-        _check(self.bank_size >= 1, "bank_size", "must be >= 1")
-        _check(self.height > 0, "height", "must be > 0")
+        check(self.count >= 0, "count", "must be >= 0")
+        check(self.slots == 0 or self.slots >= self.count, "slots", "must be 0 (= count) or >= count")
+        check(self.circumradius > 0, "circumradius", "must be > 0")
+        check(0 <= self.min_area < self.max_area, "min_area", "needs 0 <= min_area < max_area")
+        check(self.bank_size >= 1, "bank_size", "must be >= 1")
+        check(self.height > 0, "height", "must be > 0")
 
     @property
     def num_slots(self) -> int:
@@ -147,15 +153,15 @@ class CrowdConfig:
     max_speed_factor: float = 1.3
 
     def __post_init__(self) -> None:
-        _check(self.count >= 0, "count", "must be >= 0")
-        _check(self.slots == 0 or self.slots >= self.count, "slots", "must be 0 (= count) or >= count")
+        check(self.count >= 0, "count", "must be >= 0")
+        check(self.slots == 0 or self.slots >= self.count, "slots", "must be 0 (= count) or >= count")
         _check_range(self.radius, "radius", low=0.01)
         _check_range(self.speed, "speed")
-        _check(self.yaw_rate >= 0, "yaw_rate", "must be >= 0")
-        _check(self.yaw_interval >= 0, "yaw_interval", "must be >= 0")
-        _check(self.max_speed_factor >= 1, "max_speed_factor", "must be >= 1")
-        _check(self.height > 0, "height", "must be > 0")
-        _check(self.relaxation_time > 0, "relaxation_time", "must be > 0")
+        check(self.yaw_rate >= 0, "yaw_rate", "must be >= 0")
+        check(self.yaw_interval >= 0, "yaw_interval", "must be >= 0")
+        check(self.max_speed_factor >= 1, "max_speed_factor", "must be >= 1")
+        check(self.height > 0, "height", "must be > 0")
+        check(self.relaxation_time > 0, "relaxation_time", "must be > 0")
 
     @property
     def num_slots(self) -> int:
@@ -191,8 +197,8 @@ class RobotConfig:
 
     def __post_init__(self) -> None:
         for name in ("radius", "mass", "height", "v_max", "a_max", "j_max", "force_max"):
-            _check(getattr(self, name) > 0, name, "must be > 0")
-        _check(self.kv >= 0 and self.kp >= 0, "kv", "gains must be >= 0")
+            check(getattr(self, name) > 0, name, "must be > 0")
+        check(self.kv >= 0 and self.kp >= 0, "kv", "gains must be >= 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,10 +220,10 @@ class LidarConfig:
     height: float = 0.3
 
     def __post_init__(self) -> None:
-        _check(self.beams >= 8, "beams", "must be >= 8")
-        _check(self.max_range > 0, "max_range", "must be > 0")
-        _check(self.noise_std >= 0, "noise_std", "must be >= 0")
-        _check(self.height > 0, "height", "must be > 0")
+        check(self.beams >= 8, "beams", "must be >= 8")
+        check(self.max_range > 0, "max_range", "must be > 0")
+        check(self.noise_std >= 0, "noise_std", "must be >= 0")
+        check(self.height > 0, "height", "must be > 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -235,9 +241,9 @@ class TimingConfig:
     episode_steps: int = 300
 
     def __post_init__(self) -> None:
-        _check(self.control_period > 0, "control_period", "must be > 0")
-        _check(self.substeps >= 1, "substeps", "must be >= 1")
-        _check(self.episode_steps >= 1, "episode_steps", "must be >= 1")
+        check(self.control_period > 0, "control_period", "must be > 0")
+        check(self.substeps >= 1, "substeps", "must be >= 1")
+        check(self.episode_steps >= 1, "episode_steps", "must be >= 1")
 
     @property
     def physics_timestep(self) -> float:
@@ -268,8 +274,8 @@ class LayoutConfig:
     max_attempts: int = 1000
 
     def __post_init__(self) -> None:
-        _check(self.start_goal_min_distance >= 0, "start_goal_min_distance", "must be >= 0")
-        _check(self.max_attempts >= 1, "max_attempts", "must be >= 1")
+        check(self.start_goal_min_distance >= 0, "start_goal_min_distance", "must be >= 0")
+        check(self.max_attempts >= 1, "max_attempts", "must be >= 1")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -315,8 +321,8 @@ class RewardConfig:
     constant: float = 0.0
 
     def __post_init__(self) -> None:
-        _check(self.goal_tolerance > 0, "goal_tolerance", "must be > 0")
-        _check(self.speed_scale > 0, "speed_scale", "must be > 0")
+        check(self.goal_tolerance > 0, "goal_tolerance", "must be > 0")
+        check(self.speed_scale > 0, "speed_scale", "must be > 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -332,7 +338,7 @@ class ObservationConfig:
     angle: Literal["mpc", "velocity"] = "mpc"
 
     def __post_init__(self) -> None:
-        _check(self.frames >= 1, "frames", "must be >= 1")
+        check(self.frames >= 1, "frames", "must be >= 1")
 
 
 def _is_dataclass_type(tp: Any) -> bool:
@@ -462,3 +468,28 @@ def apply_overrides(config: Any, overrides: dict[str, Any] | list[str]) -> Any:
     return config
 
 
+
+
+def split_args(argv: list[str], defaults: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
+    """Split a script's ``key=value`` arguments into its options and ``task.*`` config overrides.
+
+    Args:
+        argv: Command-line arguments.
+        defaults: The script's own keys and their default values.
+
+    Returns:
+        (options with defaults filled in, ``["crowd.count=25", ...]`` overrides for :func:`load_task`).
+
+    Raises:
+        ConfigError: On an argument without ``=`` or an unknown key (the message lists the known ones).
+    """
+    opts, overrides = dict(defaults), []
+    for arg in argv:
+        key, value = parse_override(arg)
+        if key.startswith("task."):
+            overrides.append(f"{key[5:]}={arg.split('=', 1)[1]}")
+        elif key in opts:
+            opts[key] = value
+        else:
+            raise ConfigError(f"unknown argument {key!r} (known: {', '.join(defaults)}, task.<key>=...)")
+    return opts, overrides

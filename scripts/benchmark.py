@@ -21,23 +21,9 @@ import numpy as np
 
 from mjnav.config import load_task
 from mjnav.envs.gym_env import NavGymEnv
-from mjnav.schema import parse_override
+from mjnav.schema import ConfigError, split_args
 
 SCRIPT_KEYS = {"task": "stage7", "steps": 2000, "vec_steps": 200, "num_envs": 16, "seed": 0}
-
-
-def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
-    """Split ``key=value`` arguments into script options and ``task.*`` overrides."""
-    opts, overrides = dict(SCRIPT_KEYS), []
-    for arg in argv:
-        key, value = parse_override(arg)
-        if key.startswith("task."):
-            overrides.append(f"{key[5:]}={value}")
-        elif key in opts:
-            opts[key] = value
-        else:
-            raise SystemExit(f"unknown argument {key!r} (known: {', '.join(SCRIPT_KEYS)}, task.<key>=...)")
-    return opts, overrides
 
 
 def bare_physics_rate(env: NavGymEnv, steps: int = 5000) -> float:
@@ -99,7 +85,7 @@ def vec_rate(config, num_envs: int, workers: int, steps: int, seed: int) -> floa
 
 def main(argv: list[str]) -> None:
     """Run the benchmark and print markdown tables."""
-    opts, overrides = parse_args(argv)
+    opts, overrides = split_args(argv, SCRIPT_KEYS)
     config = load_task(opts["task"], overrides)
     rate, parts, env = single_env(config, int(opts["steps"]), int(opts["seed"]))
     bare = bare_physics_rate(env)
@@ -122,4 +108,7 @@ def main(argv: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    try:
+        main(sys.argv[1:])
+    except ConfigError as err:
+        sys.exit(f"error: {err}")

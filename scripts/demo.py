@@ -16,28 +16,14 @@ import numpy as np
 from mjnav.baselines.mpc_goal import MpcGoalPlanner
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.export import export_world
-from mjnav.schema import parse_override
+from mjnav.schema import ConfigError, split_args
 
 DEFAULTS = {"task": "stage6", "seed": 7, "out": "out/demo"}
 
 
-def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
-    """Script options and ``task.*`` overrides from ``key=value`` arguments."""
-    opts, overrides = dict(DEFAULTS), []
-    for arg in argv:
-        key, value = parse_override(arg)
-        if key.startswith("task."):
-            overrides.append(f"{key[5:]}={value}")
-        elif key in opts:
-            opts[key] = value
-        else:
-            raise SystemExit(f"unknown argument {key!r} (known: {', '.join(DEFAULTS)}, task.<key>=...)")
-    return opts, overrides
-
-
 def main(argv: list[str]) -> None:
     """Run the demo episode and export its world."""
-    opts, overrides = parse_args(argv)
+    opts, overrides = split_args(argv, DEFAULTS)
     t0 = time.perf_counter()
     env = NavGymEnv(opts["task"], overrides=overrides, seed=0)
     build = time.perf_counter() - t0
@@ -55,7 +41,8 @@ def main(argv: list[str]) -> None:
         p, v, _ = env.task.sim.robot_state(env.physics)
         path, ret, prev = path + float(np.linalg.norm(p - prev)), ret + reward, p
         if step % 10 == 0 or terminated or truncated:
-            print(f"  t={step * cfg.timing.control_period:4.1f} s  pos {np.round(p, 2)}  speed {np.linalg.norm(v):.2f} m/s"
+            t = step * cfg.timing.control_period
+            print(f"  t={t:4.1f} s  pos {np.round(p, 2)}  speed {np.linalg.norm(v):.2f} m/s"
                   f"  to goal {np.linalg.norm(layout.goal - p):5.2f} m")
         if terminated or truncated:
             break
@@ -69,4 +56,7 @@ def main(argv: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    try:
+        main(sys.argv[1:])
+    except ConfigError as err:
+        sys.exit(f"error: {err}")

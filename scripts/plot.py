@@ -12,18 +12,14 @@ from __future__ import annotations
 
 import sys
 
+from mjnav.schema import split_args
 
-def _parse(argv: list[str]) -> tuple[dict[str, str], list[str]]:
-    args, overrides = {}, []
-    for item in argv:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"expected key=value, got {item!r}")
-        if key.startswith("task."):
-            overrides.append(f"{key[5:]}={value}")
-        else:
-            args[key] = value
-    return args, overrides
+_KEYS = ("task", "policy", "seed", "episode_seed", "out", "run", "smooth")
+
+
+def _parse(argv: list[str]) -> tuple[dict, list[str]]:
+    opts, overrides = split_args(argv, dict.fromkeys(_KEYS))
+    return {k: v for k, v in opts.items() if v is not None}, overrides
 
 
 def _episode(args: dict[str, str], overrides: list[str]) -> str:

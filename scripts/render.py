@@ -14,21 +14,14 @@ from __future__ import annotations
 import sys
 
 from mjnav.eval.gl import GlBackendError, select_gl_backend
+from mjnav.schema import split_args
 
 _KEYS = ("task", "policy", "seed", "episode_seed", "out", "view", "width", "height", "frames", "rays")
 
 
-def _parse(argv: list[str]) -> tuple[dict[str, str], list[str]]:
-    args, overrides = {}, []
-    for item in argv:
-        key, sep, value = item.partition("=")
-        if not sep or not (key in _KEYS or key.startswith("task.")):
-            raise ValueError(f"bad argument {item!r}; keys: {', '.join(_KEYS)}, task.KEY")
-        if key.startswith("task."):
-            overrides.append(f"{key[5:]}={value}")
-        else:
-            args[key] = value
-    return args, overrides
+def _parse(argv: list[str]) -> tuple[dict, list[str]]:
+    opts, overrides = split_args(argv, dict.fromkeys(_KEYS))
+    return {k: v for k, v in opts.items() if v is not None}, overrides
 
 
 def main(argv: list[str]) -> int:
@@ -49,7 +42,7 @@ def main(argv: list[str]) -> int:
     seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
     frames = int(args["frames"]) if "frames" in args else None
     config = RenderConfig(args.get("view", "top"), int(args.get("width", 480)), int(args.get("height", 480)),
-                          frames, args.get("rays", "false").lower() in ("1", "true", "yes"))
+                          frames, str(args.get("rays", False)).lower() in ("1", "true", "yes"))
     result = render_episode(env, agent, seed, args.get("out", "episode.mp4"), config)
     print(f"{result['path']}: {result['frames']} frames, outcome {result['outcome']} ({result['backend']})")
     return 0

@@ -18,15 +18,13 @@ difference to the learned policy measures what learning adds.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mjnav.baselines.tracking import Limits, brake
-from mjnav.control.action import ActionConfig, radii
+from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, radii
 from mjnav.control.mpc import Mpc
-from mjnav.geometry.polygon import points_in_polygon, ray_convex_distance, ray_polyline_distance
 
 __all__ = ["MpcGoalPlanner", "reference_points"]
 
@@ -34,20 +32,6 @@ if TYPE_CHECKING:
     from mjnav.config import TaskConfig
     from mjnav.geometry.region import Region
     from mjnav.tasks.core import PlannerInput
-
-
-def _boundary_distance(region: Region, direction: np.ndarray) -> float:
-    origin = np.zeros(2)
-    if region.success:
-        return ray_convex_distance(origin, direction, region.normals, region.offsets)
-    hit = ray_polyline_distance(origin, direction, region.boundary_xy)
-    return 0.0 if math.isinf(hit) else hit
-
-
-def _goal_inside(region: Region, goal: np.ndarray) -> bool:
-    if region.success:
-        return bool(np.all(region.normals @ goal <= region.offsets))
-    return bool(points_in_polygon(goal, region.boundary_xy))
 
 
 def reference_points(
@@ -68,8 +52,8 @@ def reference_points(
     if dist < 1e-9:
         return np.zeros(2), np.zeros(2), True
     direction = goal / dist
-    inside = _goal_inside(region, goal)
-    q_l = goal.copy() if inside else safety * min(_boundary_distance(region, direction), dist) * direction
+    inside = goal_inside(region, goal)
+    q_l = goal.copy() if inside else safety * min(boundary_distance(region, np.zeros(2), direction), dist) * direction
     q_s = direction * min(r_s, float(np.hypot(*q_l)))
     return q_s, q_l, inside
 

@@ -39,15 +39,12 @@ from mjnav.geometry.polygon import (
     ray_polyline_distance,
 )
 from mjnav.geometry.region import Region
+from mjnav.schema import check as _check
 
-__all__ = ["ActionConfig", "ActionPoints", "map_action", "radii", "reach_distance"]
+__all__ = ["ActionConfig", "ActionPoints", "boundary_distance", "goal_inside", "map_action", "radii", "reach_distance"]
 
 TWO_PI = 2.0 * math.pi
 
-
-def _check(cond: bool, name: str, msg: str) -> None:
-    if not cond:
-        raise ValueError(f"{name}: {msg}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -174,14 +171,14 @@ def map_action(
     r_s, r_l = _radii(vx, vy, ax, ay, cfg)
     theta_s = TWO_PI * a_s + (math.atan2(vy, vx) if cfg.heading == "velocity" else 0.0)
     dir_s = np.array([math.cos(theta_s), math.sin(theta_s)])
-    d_s = min(_boundary_distance(region, _ORIGIN, dir_s), r_s)
+    d_s = min(boundary_distance(region, _ORIGIN, dir_s), r_s)
     q_s = (b_s * d_s) * dir_s
     theta_l = theta_s + TWO_PI * a_l
     dir_l = np.array([math.cos(theta_l), math.sin(theta_l)])
-    d_l = min(_boundary_distance(region, q_s, dir_l), ray_circle_distance(q_s, dir_l, r_l))
+    d_l = min(boundary_distance(region, q_s, dir_l), ray_circle_distance(q_s, dir_l, r_l))
     q_l = q_s + (b_l * d_l) * dir_l
     goal = np.array([gx, gy])
-    inside = _goal_inside(region, goal)
+    inside = goal_inside(region, goal)
     return ActionPoints(
         q_s, q_l, goal if inside else q_l, _wrap(theta_s), _wrap(theta_l), d_s, d_l, r_s, r_l, inside
     )
@@ -230,7 +227,7 @@ def _validate(
     return [float(v) for v in values]
 
 
-def _boundary_distance(region: Region, origin: np.ndarray, direction: np.ndarray) -> float:
+def boundary_distance(region: Region, origin: np.ndarray, direction: np.ndarray) -> float:
     """Distance along the ray to the action polygon's boundary (convex, or the fallback polyline)."""
     if region.success:
         return ray_convex_distance(origin, direction, region.normals, region.offsets)
@@ -238,7 +235,8 @@ def _boundary_distance(region: Region, origin: np.ndarray, direction: np.ndarray
     return 0.0 if math.isinf(hit) else hit
 
 
-def _goal_inside(region: Region, goal: np.ndarray) -> bool:
+def goal_inside(region: Region, goal: np.ndarray) -> bool:
+    """Whether ``goal`` (robot frame, metres) lies in the region (or its fallback star polygon)."""
     if region.success:
         return bool(point_in_halfplanes(goal, region.normals, region.offsets))
     return bool(points_in_polygon(goal, region.boundary_xy))

@@ -49,15 +49,12 @@ from mjnav.control.qp import (
     rollout,
 )
 from mjnav.geometry.polygon import halfplanes
+from mjnav.schema import check as _check
 
 __all__ = ["Mpc", "MpcConfig", "MpcResult", "prediction_matrices", "simulate_triple_integrator"]
 
 Arr = np.ndarray
 
-
-def _check(cond: bool, name: str, msg: str) -> None:
-    if not cond:
-        raise ValueError(f"{name}: {msg}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -71,6 +71,8 @@ def select_gl_backend(candidates: Sequence[str] | None = None) -> str:
         GlBackendError: None works (names the Debian packages that provide them).
     """
     preset = os.environ.get("MUJOCO_GL", "").lower().strip()
+    if os.environ.get("MJNAV_GL_DEFAULTED") == "1":
+        preset = ""  # set by ``import mjnav`` as a default, not by the user: try every backend
     order = list(candidates) if candidates else ([preset] if preset in _HEADLESS else list(_HEADLESS))
     for backend in order:
         if probe_gl_backend(backend):

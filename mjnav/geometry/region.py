@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 
 from mjnav.geometry.polygon import graham_scan, monotone_chain
+from mjnav.schema import check as _check
 
 __all__ = ["STATUS_NAMES", "Region", "RegionConfig", "compute_region", "warm_up"]
 
@@ -54,10 +55,6 @@ STATUS_NAMES = (
 _TOUCH = 1e-6  # flip skip radius of spec §3 step 1, metres
 _MARGIN = 1e-9  # strictness of "origin strictly inside", metres
 
-
-def _check(cond: bool, name: str, msg: str) -> None:
-    if not cond:
-        raise ValueError(f"{name}: {msg}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,7 +17,9 @@ from mjnav.schema import RewardConfig
 
 __all__ = ["RewardInputs", "TERMS", "compute_terms", "enabled_terms", "total", "weights"]
 
-TERMS = ("success", "collision", "proximity", "approach", "feasibility", "change", "slow", "velocity_change", "constant")
+TERMS = (
+    "success", "collision", "proximity", "approach", "feasibility", "change", "slow", "velocity_change", "constant",
+)
 _DISABLED = {"r_t1": (), "r_t2": ("change",), "r_t3": ("feasibility",), "r_t4": ("change", "feasibility")}
 
 

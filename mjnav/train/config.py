@@ -26,13 +26,10 @@ import dataclasses
 from typing import Any, Literal
 
 from mjnav.schema import apply_overrides
+from mjnav.schema import check as _check
 
 __all__ = ["CurriculumConfig", "PolicyConfig", "TrainConfig", "load_train"]
 
-
-def _check(cond: bool, name: str, msg: str) -> None:
-    if not cond:
-        raise ValueError(f"{name}: {msg}")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -1,6 +1,5 @@
 """Observation layout against spec §6 on hand-built frames."""
 
-import math
 
 import numpy as np
 import pytest
