@@ -29,7 +29,7 @@ class CrowdNavTask(composer.Task):
     def __init__(self, config) -> None:
         """Build the world once (fixed slots) for a :class:`mjnav.config.TaskConfig`."""
         self.config = config
-        self.sim = NavSim(config)
+        self.sim = NavSim(config, rangefinders=config.lidar.rangefinders)
         self.core = NavCore(config)
         self.set_timesteps(config.timing.control_period, config.timing.physics_timestep)
         self._obs = np.zeros(self.core.observation_size, dtype=np.float32)

@@ -132,3 +132,13 @@ class DmEnvTest(test_utils.EnvironmentTestMixin, absltest.TestCase):
 
     def make_object_under_test(self):
         return mjnav.make_env("stage3", seed=0)
+
+
+def test_rangefinder_sites_optional_for_analytic_lidar() -> None:
+    """lidar.rangefinders=false compiles no rangefinders and scans the same as with them."""
+    with_sites = NavGymEnv("stage5", seed=0)
+    without = NavGymEnv("stage5", overrides=["lidar.rangefinders=false"], seed=0)
+    assert with_sites.physics.model.nsensor == 360 and without.physics.model.nsensor == 0
+    obs_a, _ = with_sites.reset(seed=2)
+    obs_b, _ = without.reset(seed=2)
+    np.testing.assert_array_equal(obs_a, obs_b)
