@@ -21,274 +21,30 @@ environment's own generator, so the same seed and actions give the same rollouts
 from __future__ import annotations
 
 import contextlib
-import multiprocessing as mp
-import os
 import time
-import traceback
 from collections import Counter
-from collections.abc import Callable, Iterator
-from multiprocessing import forkserver
-from multiprocessing.connection import Connection
 from multiprocessing.shared_memory import SharedMemory
-from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import torch
 from rsl_rl.env import VecEnv
 from tensordict import TensorDict
 
+from mjnav.envs.workers import (
+    _CODES,
+    OUTCOMES,
+    EnvError,
+    EnvFn,
+    _context,
+    _default_workers,
+    _layout,
+    _LocalHandle,
+    _views,
+    _WorkerHandle,
+)
+
 __all__ = ["OUTCOMES", "EnvError", "NavVecEnv"]
-
-OUTCOMES: tuple[str, ...] = ("running", "success", "collision", "timeout")
-"""Outcome names; ``extras["outcomes"]`` holds their indices."""
-
-_CODES = {name: code for code, name in enumerate(OUTCOMES)}
-
-EnvFn = Callable[[int], gym.Env]
-
-
-class EnvError(RuntimeError):
-    """An environment or worker failed; the message carries the original traceback."""
-
-
-def _layout(num_envs: int, obs_dim: int, act_dim: int) -> tuple[dict[str, tuple], int]:
-    """Byte offsets (64-aligned), dtypes and shapes of the shared buffers, and the total size."""
-    n = num_envs
-    specs = {
-        "obs": (np.float32, (n, obs_dim)),
-        "actions": (np.float32, (n, act_dim)),
-        "rewards": (np.float32, (n,)),
-        "terminated": (np.bool_, (n,)),
-        "truncated": (np.bool_, (n,)),
-        "force": (np.bool_, (n,)),
-        "outcome": (np.int8, (n,)),
-    }
-    layout, offset = {}, 0
-    for name, (dtype, shape) in specs.items():
-        layout[name] = (offset, dtype, shape)
-        offset += -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // 64) * 64
-    return layout, offset
-
-
-def _views(buffer: Any, layout: dict[str, tuple]) -> dict[str, np.ndarray]:
-    """Numpy views of the fields of ``layout`` onto ``buffer``."""
-    return {name: np.ndarray(shape, dtype, buffer, offset) for name, (offset, dtype, shape) in layout.items()}
-
-
-class _EnvGroup:
-    """The environments of one worker, stepping into (shared) numpy buffers."""
-
-    def __init__(self, env_fn: EnvFn, indices: range, seed: int) -> None:
-        self.indices = indices
-        self.seed = seed
-        self.envs = [env_fn(i) for i in indices]
-        self.buf: dict[str, np.ndarray] = {}
-        self._seeded = False
-
-    def describe(self) -> tuple[gym.Space, gym.Space, int | None]:
-        """Spaces and step limit of the first environment."""
-        env = self.envs[0]
-        return env.observation_space, env.action_space, env.spec.max_episode_steps if env.spec else None
-
-    def reset(self) -> None:
-        """Reset every environment (seeded with ``seed + index`` the first time)."""
-        for i, env in zip(self.indices, self.envs, strict=True):
-            with _blame(i):
-                self.buf["obs"][i], _ = env.reset(seed=None if self._seeded else self.seed + i)
-        self._seeded = True
-        self.buf["outcome"][self.indices.start : self.indices.stop] = 0
-
-    def step(self) -> tuple[Counter, Counter, Counter]:
-        """Step every environment with the shared actions; auto-reset finished ones.
-
-        Returns:
-            Sums over this group of the reward terms, sums and counts of the MPC statistics.
-        """
-        terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
-        buf = self.buf
-        for i, env in zip(self.indices, self.envs, strict=True):
-            with _blame(i):
-                obs, reward, terminated, truncated, info = env.step(buf["actions"][i].copy())
-                terms.update(info.get("reward_terms", {}))  # Counter.update adds (negatives kept)
-                mpc_sum.update(info.get("mpc", {}))
-                mpc_count.update(info.get("mpc", {}).keys())
-                truncated = (bool(truncated) or bool(buf["force"][i])) and not terminated
-                buf["outcome"][i] = _outcome_code(info, bool(terminated), truncated)
-                if terminated or truncated:
-                    obs, _ = env.reset()
-                buf["obs"][i], buf["rewards"][i] = obs, reward
-                buf["terminated"][i], buf["truncated"][i] = terminated, truncated
-        return terms, mpc_sum, mpc_count
-
-    def close(self) -> None:
-        """Close every environment."""
-        for env in self.envs:
-            env.close()
-
-
-@contextlib.contextmanager
-def _blame(index: int) -> Iterator[None]:
-    """Add the environment index to any exception raised inside."""
-    try:
-        yield
-    except Exception as exc:
-        exc.add_note(f"(in environment {index})")
-        raise
-
-
-def _outcome_code(info: dict, terminated: bool, truncated: bool) -> int:
-    """Outcome index of one step; truncation without a terminal outcome counts as timeout."""
-    name = info.get("outcome", "running")
-    if name not in _CODES:
-        raise ValueError(f"unknown outcome {name!r} (expected one of {OUTCOMES})")
-    code = _CODES[name]
-    if terminated and code in (0, 3):
-        raise ValueError(f"terminated with outcome {name!r} (timeouts must be truncations)")
-    if truncated and code == 0:
-        code = _CODES["timeout"]
-    return code
-
-
-def _worker_main(conn: Connection, env_fn: EnvFn, indices: range, seed: int) -> None:
-    """Worker loop: build the envs, report their spaces, then serve commands until ``close``."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's business
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # the main process closes us (or we see EOF)
-    group, shm = None, None
-    try:
-        group = _EnvGroup(env_fn, indices, seed)
-        conn.send(("ok", group.describe()))
-        while True:
-            command, arg = conn.recv()
-            if command == "step":
-                conn.send(("ok", group.step()))
-            elif command == "reset":
-                group.reset()
-                conn.send(("ok", None))
-            elif command == "attach":
-                shm = SharedMemory(name=arg[0])
-                group.buf = _views(shm.buf, arg[1])
-                conn.send(("ok", None))
-            elif command == "close":
-                break
-    except (EOFError, KeyboardInterrupt):
-        return
-    except BaseException:  # noqa: BLE001 - forwarded to the main process
-        conn.send(("error", traceback.format_exc()))
-    finally:
-        if group is not None:
-            group.buf = {}
-            with contextlib.suppress(Exception):
-                group.close()
-        if shm is not None:
-            shm.close()
-
-
-class _LocalHandle(_EnvGroup):
-    """In-process stand-in for a worker (``workers=0``): same protocol, no process."""
-
-    def request(self, command: str, arg: Any = None) -> None:
-        try:
-            self._reply = self.buf.update(arg) if command == "attach" else getattr(self, command)()
-        except Exception as exc:
-            raise EnvError(
-                f"envs {self.indices.start}-{self.indices.stop - 1} raised:\n{traceback.format_exc()}"
-            ) from exc
-
-    def result(self, timeout: float) -> Any:
-        return self._reply if hasattr(self, "_reply") else self.describe()
-
-
-class _WorkerHandle:
-    """A worker process stepping ``indices`` and the main process's end of its pipe."""
-
-    def __init__(self, ctx: Any, env_fn: EnvFn, indices: range, seed: int, rank: int) -> None:
-        self.indices = indices
-        self.name = f"worker {rank} (envs {indices.start}-{indices.stop - 1})"
-        self.conn, child = ctx.Pipe()
-        self.process = ctx.Process(
-            target=_worker_main, args=(child, env_fn, indices, seed), name=f"mjnav-env-{rank}", daemon=True
-        )
-        with _worker_environment():
-            self.process.start()
-        child.close()
-
-    def request(self, command: str, arg: Any = None) -> None:
-        try:
-            self.conn.send((command, arg))
-        except (BrokenPipeError, EOFError, OSError):
-            raise EnvError(f"{self.name} is gone (exit code {self.process.exitcode})") from None
-
-    def result(self, timeout: float) -> Any:
-        if not self.conn.poll(timeout):
-            raise EnvError(f"{self.name} did not answer within {timeout:.0f} s")
-        try:
-            status, payload = self.conn.recv()
-        except (EOFError, OSError):
-            self.process.join(1.0)
-            raise EnvError(f"{self.name} died (exit code {self.process.exitcode})") from None
-        if status == "error":
-            raise EnvError(f"{self.name} raised:\n{payload}")
-        return payload
-
-    def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self.conn.send(("close", None))
-        self.process.join(5.0)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(1.0)
-        self.conn.close()
-
-
-# Each worker steps small dense problems; multi-threaded BLAS/OpenMP pools in every worker
-# oversubscribe the cores (measured: 2 workers x 16 envs ran 2.5x slower with default pools).
-_WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-               "NUMBA_NUM_THREADS": "1"}
-
-
-@contextlib.contextmanager
-def _worker_environment() -> Iterator[None]:
-    """Temporarily set what worker processes inherit: the package on PYTHONPATH, 1-thread pools.
-
-    Python 3.11's forkserver ignores the parent's sys.path, so the package root is added.
-    """
-    root = str(Path(__file__).resolve().parents[2])
-    wanted = {**_WORKER_ENV, "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))}
-    saved = {key: os.environ.get(key) for key in wanted}
-    os.environ.update({k: v if k == "PYTHONPATH" else os.environ.get(k, v) for k, v in wanted.items()})
-    try:
-        yield
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
-def _context(start_method: str) -> Any:
-    """Multiprocessing context for ``start_method``.
-
-    With forkserver, the single-threaded server preloads this module, so torch is imported once
-    instead of in every worker (~3 s each).
-    """
-    ctx = mp.get_context(start_method)
-    if start_method == "forkserver":
-        ctx.set_forkserver_preload([__name__])
-        with _worker_environment():
-            forkserver.ensure_running()
-    return ctx
-
-
-def _default_workers(num_envs: int) -> int:
-    """One worker per usable CPU core, at most one per environment."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, min(num_envs, cores))
-
 
 class NavVecEnv(VecEnv):
     """``num_envs`` gymnasium environments behind rsl-rl's :class:`~rsl_rl.env.VecEnv` interface.
