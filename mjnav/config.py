@@ -62,30 +62,48 @@ class TaskConfig:
     reward: RewardConfig = RewardConfig()
     observation: ObservationConfig = ObservationConfig()
 
+    def _derived(self) -> dict[str, dict[str, tuple[str, Any]]]:
+        """Copies the action layer keeps of other sections: ``{section: {field: (source key, value)}}``."""
+        t_c, robot = self.timing.control_period, self.robot
+        return {
+            "mpc": {"t_c": ("timing.control_period", t_c), "v_max": ("robot.v_max", robot.v_max),
+                    "a_max": ("robot.a_max", robot.a_max), "j_max": ("robot.j_max", robot.j_max)},
+            "action": {"t_c": ("timing.control_period", t_c), "jerk_max": ("robot.j_max", robot.j_max),
+                       "long_time": ("mpc.horizon x timing.control_period", self.mpc.horizon * t_c)},
+            "region": {"max_range": ("lidar.max_range", self.lidar.max_range)},
+        }
+
     def __post_init__(self) -> None:
-        """Derive the action layer's copies of robot limits and timing from ``robot``/``timing``/``lidar``.
+        """Fill the derived copies from their sources and check cross-section constraints.
 
-        ``robot``, ``timing`` and ``lidar`` are the sources of truth; a copy set explicitly to a
-        different value (not its default) is an error naming both keys.
+        ``robot``, ``timing``, ``lidar`` and ``mpc.horizon`` are the sources of truth: the copies
+        (``mpc.v_max``, ``action.t_c``, ...) always follow them; setting a copy explicitly to another
+        value is rejected by :meth:`check_explicit`.
         """
-        sources = {"t_c": ("timing.control_period", self.timing.control_period),
-                   "v_max": ("robot.v_max", self.robot.v_max), "a_max": ("robot.a_max", self.robot.a_max),
-                   "j_max": ("robot.j_max", self.robot.j_max), "jerk_max": ("robot.j_max", self.robot.j_max),
-                   "max_range": ("lidar.max_range", self.lidar.max_range)}
-        derived = {"mpc": ("t_c", "v_max", "a_max", "j_max"), "action": ("t_c", "jerk_max"),
-                   "region": ("max_range",)}
-        for section, fields in derived.items():
-            sub = getattr(self, section)
-            default = type(sub)()
-            changes = {}
-            for name in fields:
-                key, value = sources[name]
-                current = getattr(sub, name)
-                if current not in (value, getattr(default, name)):
-                    raise ValueError(f"{section}.{name}: {current} disagrees with {key} ({value}); set {key}")
-                changes[name] = value
-            object.__setattr__(self, section, dataclasses.replace(sub, **changes))
+        for section, fields in self._derived().items():
+            values = {name: value for name, (_, value) in fields.items()}
+            object.__setattr__(self, section, dataclasses.replace(getattr(self, section), **values))
+        if self.region.inflation < self.robot.radius:
+            raise ValueError(f"region.inflation: {self.region.inflation} m is below robot.radius "
+                             f"({self.robot.radius} m): the free region would not keep the robot's disc clear")
+        if self.lidar.beams < self.region.num_points:
+            raise ValueError(f"lidar.beams: {self.lidar.beams} beams cannot give region.num_points "
+                             f"({self.region.num_points}) boundary points")
 
+    def check_explicit(self, data: dict[str, Any]) -> None:
+        """Reject keys in ``data`` that set a derived copy to a value other than its source's.
+
+        Raises:
+            ValueError: Naming the copy and the key to set instead.
+        """
+        for section, fields in self._derived().items():
+            given = data.get(section)
+            if not isinstance(given, dict):
+                continue
+            for name, (key, value) in fields.items():
+                if name in given and given[name] != value:
+                    raise ValueError(f"{section}.{name}: {given[name]} disagrees with {key} ({value}); "
+                                     f"it is derived: set {key}")
 
 
 def task_dir() -> Path:

@@ -278,7 +278,11 @@ class LayoutConfig:
     max_attempts: int = 1000
 
     def __post_init__(self) -> None:
-        check(self.start_goal_min_distance >= 0, "start_goal_min_distance", "must be >= 0")
+        for name in ("start_goal_min_distance", "free_clearance", "obstacle_clearance", "min_start_scan",
+                     "pedestrian_gap"):
+            check(getattr(self, name) >= 0, name, "must be >= 0")
+        check(self.start_goal_max_distance == 0 or self.start_goal_max_distance >= self.start_goal_min_distance,
+              "start_goal_max_distance", "must be 0 (no limit) or >= start_goal_min_distance")
         check(self.max_attempts >= 1, "max_attempts", "must be >= 1")
 
 
@@ -327,6 +331,11 @@ class RewardConfig:
     def __post_init__(self) -> None:
         check(self.goal_tolerance > 0, "goal_tolerance", "must be > 0")
         check(self.speed_scale > 0, "speed_scale", "must be > 0")
+        for name in ("success", "approach_gain", "recede_gain", "approach_clip", "feasibility_clip",
+                     "proximity_decay", "proximity_range"):
+            check(getattr(self, name) >= 0, name, "must be >= 0")
+        for name in ("collision", "proximity_scale", "feasibility", "change", "slow", "velocity_change"):
+            check(getattr(self, name) <= 0, name, "is a penalty weight and must be <= 0")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -426,7 +435,10 @@ def merge(base: Any, data: dict[str, Any], path: str = "") -> Any:
         else:
             changes[key] = _coerce(value, field_type, where)
     try:
-        return dataclasses.replace(base, **changes)
+        merged = dataclasses.replace(base, **changes)
+        if hasattr(merged, "check_explicit"):  # sections whose fields derive from others
+            merged.check_explicit(data)
+        return merged
     except ValueError as err:
         raise ConfigError(f"{path}{err}") from None
 

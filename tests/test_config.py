@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from mjnav.config import ConfigError, TaskConfig, load_task, task_dir
-from mjnav.schema import apply_overrides, to_dict
+from mjnav.schema import apply_overrides, from_dict, to_dict
 
 SPEC_TABLE = {  # stage: (interior, static, dynamic, radius range, speed range) from spec §9
     "stage1": ((20.0, 30.0), 0, 0, None, None),
@@ -120,3 +120,31 @@ def test_conflicting_copy_of_a_limit_is_rejected() -> None:
     """Setting the MPC's copy of a robot limit to another value names both keys."""
     with pytest.raises(ConfigError, match=r"mpc\.v_max.*robot\.v_max"):
         load_task("stage6", ["mpc.v_max=3.0"])
+
+
+def test_source_can_change_again_after_derivation() -> None:
+    """A derived copy follows its source through repeated overrides and a saved-config round trip."""
+    cfg = apply_overrides(load_task("stage6", ["robot.v_max=2.0"]), ["robot.v_max=3.0"])
+    assert cfg.mpc.v_max == 3.0
+    assert apply_overrides(cfg, ["robot.v_max=2.5", "timing.control_period=0.05"]).mpc.t_c == 0.05
+    assert from_dict(TaskConfig, to_dict(cfg)) == cfg
+
+
+def test_long_term_reach_time_is_the_mpc_horizon() -> None:
+    """action.long_time follows mpc.horizon × control period (1 s by default, 3 s at N = 30)."""
+    assert load_task("stage6").action.long_time == pytest.approx(1.0)
+    assert load_task("stage6", ["mpc.horizon=30"]).action.long_time == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    ("region.inflation=0.1", r"region\.inflation.*robot\.radius"),
+    ("lidar.beams=30", r"lidar\.beams"),
+    ("reward.feasibility_clip=-1", r"feasibility_clip"),
+    ("reward.collision=30", r"collision"),
+    ("layout.free_clearance=-0.5", r"free_clearance"),
+    ("layout.start_goal_max_distance=0.5", r"start_goal_max_distance"),
+])
+def test_inconsistent_values_rejected(override: str, message: str) -> None:
+    """Values that would make the task silently wrong are rejected at load with the key."""
+    with pytest.raises(ConfigError, match=message):
+        load_task("stage6", [override])

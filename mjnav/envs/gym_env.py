@@ -86,7 +86,13 @@ class NavGymEnv(gym.Env):
         return timestep.observation["observation"].copy(), self._info()
 
     def step(self, action):
-        """One control step (0.1 s)."""
+        """One control step (0.1 s).
+
+        Raises:
+            RuntimeError: If the episode has ended (call ``reset()`` first).
+        """
+        if self.task.layout is None or self.task.outcome.done:
+            raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         timestep = self._env.step(np.asarray(action, dtype=np.float32))
         outcome = self.task.outcome
         terminated = outcome.terminal
@@ -97,7 +103,8 @@ class NavGymEnv(gym.Env):
         record = self.task.core.record
         mpc = {"region_success": float(self.task.core.region.success)}
         if record is not None:
-            mpc["fallback"] = float(not record.plan_ok)
+            mpc["fallback"] = float(record.fallback is not None)  # this step's plan (baselines: never)
+            mpc["plan_region_success"] = float(record.region_ok)  # the region that plan used
             if self._timing_info:
                 mpc["solve_time_ms"] = 1e3 * record.solve_time_s
         return {
@@ -105,6 +112,7 @@ class NavGymEnv(gym.Env):
             "reward_terms": dict(self.task.terms),
             "mpc": mpc,
             "episode_seed": self.task.episode_seed,
+            "collision_kind": self.task.contact_kind,
         }
 
     def render(self):

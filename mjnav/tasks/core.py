@@ -127,7 +127,8 @@ class NavCore:
         self._plan: obs_lib.Plan | None = None
         self._prev = {"q_s": None, "q_l": None, "plan_ok": False, "distance": None, "velocity": velocity.copy()}
         self.record: StepRecord | None = None
-        self.region = self._region(scan)
+        self.region = compute_region(scan, self._angles, self.config.region)  # not timed: part of reset
+        self.counters["region_failures"] += int(not self.region.success)
         polygon, state = self._frame(position, velocity)
         return self._stack.reset(polygon, state)
 

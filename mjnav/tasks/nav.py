@@ -20,7 +20,10 @@ from dm_env import specs
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
 
-__all__ = ["CrowdNavTask"]
+__all__ = ["TRAINING_SEED_LIMIT", "CrowdNavTask"]
+
+TRAINING_SEED_LIMIT = 2**31 - 1
+"""Episode seeds drawn from the environment's random state lie in [0, TRAINING_SEED_LIMIT)."""
 
 
 class CrowdNavTask(composer.Task):
@@ -38,6 +41,7 @@ class CrowdNavTask(composer.Task):
         self.next_episode_seed: int | None = None
         self.episode_seed: int | None = None
         self.layout = None
+        self.contact_kind: str | None = None  # wall, obstacle or pedestrian after a contact
         self.planner = None  # a mjnav.tasks.core.Planner replaces the learned action layer when set
         self._scan = None
         self.timers = {"physics": 0.0, "lidar": 0.0}  # seconds, accumulated; NavCore has the rest
@@ -70,7 +74,7 @@ class CrowdNavTask(composer.Task):
         seed = self.next_episode_seed
         self.next_episode_seed = None
         if seed is None:
-            seed = int(random_state.randint(0, 2**31 - 1))
+            seed = int(random_state.randint(0, TRAINING_SEED_LIMIT))
         self.episode_seed = seed
         self.rng = np.random.default_rng(seed)
         self.layout = self.sim.initialize_episode(physics, self.rng)
@@ -81,6 +85,7 @@ class CrowdNavTask(composer.Task):
             self.planner.reset(self.config, np.random.default_rng([seed, 1]))  # own stream: scenario stays paired
         self._reward = 0.0
         self.terms = {}
+        self.contact_kind = None
 
     def before_step(self, physics, action, random_state) -> None:
         """Turn the action into a jerk command for the coming control period."""
@@ -101,9 +106,9 @@ class CrowdNavTask(composer.Task):
     def after_step(self, physics, random_state) -> None:
         """Scan, score the step and build the next observation."""
         del random_state
+        self.sim.sync(physics)
         t0 = time.perf_counter()
         self.timers["physics"] += t0 - self._t_physics
-        self.sim.sync(physics)
         p, v, _ = self.sim.robot_state(physics)
         scan = self._scan = self.sim.scan(physics, self.rng)
         self.timers["lidar"] += time.perf_counter() - t0

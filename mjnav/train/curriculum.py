@@ -1,7 +1,9 @@
 """Stage curriculum (spec §9, proposal): stage1 -> stage7.
 
 Training on a stage is interrupted every ``eval_interval`` iterations for a deterministic
-evaluation over ``eval_episodes`` episodes on held-out seeds. The curriculum promotes to the next
+evaluation over ``eval_episodes`` episodes in separately seeded environments (base seed offset by
+``eval_seed_offset``; their episode seeds come from the same < 2**31 space as training, unlike the
+held-out set of ``scripts/evaluate.py``, which is kept for final results). The curriculum promotes to the next
 stage when the success rate reaches ``threshold`` or when the stage's env-step budget is spent.
 One runner (networks, optimizer, iteration count, TensorBoard run) lives through all stages;
 only its environment is swapped. The state is kept in ``curriculum.yaml`` for resuming.
