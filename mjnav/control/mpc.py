@@ -218,7 +218,14 @@ class Mpc:
         self.reset()
 
     def reset(self) -> None:
-        """Forget the previous plan and the warm start (call at every episode start)."""
+        """Forget the previous plan and the warm start (call at every episode start).
+
+        OSQP keeps its own iterate (and may have been grown for a large polygon): it is rebuilt so
+        an episode's solves do not depend on earlier episodes.
+        """
+        cfg = self.config
+        if cfg.solver == "osqp" and self.stats.get("solves", 0):
+            self._backend = make_backend("osqp", self._a_fixed, self._gamma[0], cfg.max_halfplanes, cfg.soft)
         self._warm: np.ndarray | None = None
         self._plan_age = self.config.horizon  # no previous plan
         for key in ("solves", "solved", "failures", "brake_previous", "no_polygon", "brake"):

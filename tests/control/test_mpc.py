@@ -257,3 +257,19 @@ def test_invalid_inputs_raise_value_error():
         mpc.solve(
             np.zeros((3, 2)), np.zeros(2), np.zeros(2), np.array([[0.0, 1.0], [np.nan, 0.0], [1.0, 1.0]])
         )
+
+
+def test_osqp_reset_forgets_earlier_episodes() -> None:
+    """After reset(), an OSQP MPC solves exactly like a fresh one (no state carried across episodes)."""
+    rng = np.random.default_rng(5)
+    square = np.array([[-1.0, 1.0], [1.0, 1.0], [1.0, -1.0], [-1.0, -1.0]])  # clockwise
+    inputs = [(np.stack([np.zeros(2), rng.uniform(-1, 1, 2), rng.uniform(-1, 1, 2)]),
+               rng.uniform(-0.5, 0.5, 2), rng.uniform(-0.8, 0.8, 2)) for _ in range(4)]
+    used = Mpc(MpcConfig(solver="osqp"))
+    for state, q_s, q_l in inputs[::-1]:
+        used.solve(state, q_s, q_l, square)
+    used.reset()
+    fresh = Mpc(MpcConfig(solver="osqp"))
+    for state, q_s, q_l in inputs:
+        a, b = used.solve(state, q_s, q_l, square), fresh.solve(state, q_s, q_l, square)
+        np.testing.assert_array_equal(a.jerks, b.jerks)
