@@ -127,15 +127,12 @@ class NavCore:
         self._plan: obs_lib.Plan | None = None
         self._prev = {"q_s": None, "q_l": None, "plan_ok": False, "distance": None, "velocity": velocity.copy()}
         self.record: StepRecord | None = None
-        self.region = compute_region(scan, self._angles, self.config.region)  # not timed: part of reset
-        self.counters["region_failures"] += int(not self.region.success)
+        self.region = self._region(scan)  # not timed: part of reset
         polygon, state = self._frame(position, velocity)
         return self._stack.reset(polygon, state)
 
     def _region(self, scan: np.ndarray) -> Region:
-        t0 = time.perf_counter()
         region = compute_region(scan, self._angles, self.config.region)
-        self.timers["region"] += time.perf_counter() - t0
         if not region.success:
             self.counters["region_failures"] += 1
         return region
@@ -246,7 +243,9 @@ class NavCore:
         self._plan = pending["plan"]
         self._prev = {"q_s": pending["q_s"], "q_l": pending["q_l"], "plan_ok": pending["plan_ok"],
                       "distance": distance, "velocity": velocity.copy()}
+        t0 = time.perf_counter()
         self.region = self._region(scan)
+        self.timers["region"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         polygon, state = self._frame(position, velocity)
         obs = self._stack.push(polygon, state)
