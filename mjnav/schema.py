@@ -230,6 +230,7 @@ class LidarConfig:
         check(self.height > 0, "height", "must be > 0")
 
 
+
 @dataclasses.dataclass(frozen=True)
 class TimingConfig:
     """Control and physics timing.
@@ -238,11 +239,14 @@ class TimingConfig:
         control_period: One RL/MPC step, seconds.
         substeps: Physics steps per control period.
         episode_steps: Control steps before a timeout (truncation).
+        integrator: MuJoCo integrator (``Euler``, ``RK4``, ``implicit``, ``implicitfast``). The
+            robot's tracking plan is exact for each, so the default is the cheapest.
     """
 
     control_period: float = 0.1
     substeps: int = 5
     episode_steps: int = 300
+    integrator: Literal["Euler", "RK4", "implicit", "implicitfast"] = "Euler"
 
     def __post_init__(self) -> None:
         check(self.control_period > 0, "control_period", "must be > 0")

@@ -9,8 +9,9 @@ poses, mesh ids and radii into the compiled model and data.
 Per control period (``timing.control_period``, ``timing.substeps`` physics steps):
 
 1. :meth:`apply_command` sets the robot's triple-integrator reference from its state and jerk;
-2. before every physics step, :meth:`before_substep` moves the pedestrians by one physics
-   timestep (mocap positions, so their motion is smooth) and writes the tracking force;
+   and moves the crowd through the period, one step per physics substep;
+2. before every physics step, :meth:`before_substep` places the pedestrians of that substep
+   (mocap positions, so their motion is smooth) and writes the tracking force;
 3. after the period, :meth:`scan` (once) and :meth:`robot_in_collision` read the world.
 
 :meth:`control_step` runs 1-3 without composer. Randomness: the generator given to
@@ -48,15 +49,15 @@ COLLISION_KINDS = (None, "wall", "obstacle", "pedestrian")
 class NavSim:
     """Arena + robot + crowd of one :class:`~mjnav.config.TaskConfig`, built once."""
 
-    def __init__(self, config: TaskConfig, integrator: str = "RK4", lidar_method: str = "multiray",
+    def __init__(self, config: TaskConfig, integrator: str | None = None, lidar_method: str = "multiray",
                  rangefinders: bool = True) -> None:
         """Builds the entities (not compiled yet).
 
         Args:
             config: A ``TaskConfig`` (uses arena, obstacles, crowd, robot, lidar, timing, layout and
                 ``region.inflation``).
-            integrator: MuJoCo integrator; ``RK4`` tracks the triple integrator to ~0.03 mm per
-                period, ``Euler`` to mm (see :mod:`mjnav.entities.robot`).
+            integrator: MuJoCo integrator, default ``config.timing.integrator``; the robot's
+                tracking plan is exact for each (see :mod:`mjnav.entities.robot`).
             lidar_method: Evaluation method of the ``mujoco`` LiDAR backend (``multiray``, or
                 ``sensor``, which needs the rangefinders).
             rangefinders: Compile the robot's 360 rangefinder sites and sensors (spec §2). False
@@ -74,6 +75,7 @@ class NavSim:
         self.crowd.attach_to(self.arena)
         option = self.arena.mjcf_model.option
         option.timestep = config.timing.physics_timestep
+        integrator = config.timing.integrator if integrator is None else integrator
         integrator_value(integrator)  # validates the name
         option.integrator = integrator
         option.noslip_iterations = 0
@@ -89,6 +91,7 @@ class NavSim:
         self._num_peds = 0
         self._substep = 0
         self._sticky = 0
+        self._crowd_track = np.zeros((0, 0, 2))
         self.layout: Layout | None = None
 
     # ------------------------------------------------------------------ building
@@ -163,25 +166,41 @@ class NavSim:
         polygons = self.arena.obstacle_polygons(physics, cfg.lidar.height)
         self._segments = np.vstack([wall_segments(cfg.arena.size), polygon_segments(polygons)])
         self._substep, self._sticky = 0, 0
+        self._crowd_track = np.zeros((0, self._num_peds, 2))
         self.layout = layout
         return layout
 
     # ------------------------------------------------------------------ stepping
     def apply_command(self, physics: mjcf.Physics, jerk: np.ndarray) -> None:
-        """Starts a control period: reference from the robot state under ``jerk`` (2,), m/s³."""
+        """Starts a control period: reference from the robot state under ``jerk`` (2,), m/s³.
+
+        Also moves the crowd through the whole period in one call (pedestrians that react to
+        the robot see its planned position at each substep, which is its free-space position).
+        """
         p, v, a = self.robot_state(physics)
-        self.robot.set_reference(p, v, a, jerk)
+        substeps = self.config.timing.substeps
+        self.robot.set_reference(p, v, a, jerk, substeps=substeps)
         self._substep, self._sticky = 0, 0
+        if self._num_peds:
+            plan = self.robot.plan(physics)
+            self._crowd_track = self.pedestrians.advance(
+                self._dt, substeps, robot_positions=[row[4:6] for row in plan],
+                robot_radius=self.config.robot.radius,
+            )
 
     def before_substep(self, physics: mjcf.Physics) -> None:
-        """Moves the pedestrians by one physics timestep, then writes the tracking force."""
+        """Places the pedestrians for the coming physics step, then writes the tracking force."""
         data = physics.data.ptr
-        if self._substep and data.ncon and not self._sticky:
+        k = self._substep
+        if k and data.ncon and not self._sticky:
             self._sticky = self._contact_kind(data)
         if self._num_peds:
-            self.pedestrians.step(self._dt, robot_position=data.qpos[self._qpos],
-                                  robot_radius=self.config.robot.radius)
-            data.mocap_pos[self._ped_index, :2] = self.pedestrians.positions
+            if k >= len(self._crowd_track):  # more substeps than a period: one more crowd step
+                robot = data.qpos[self._qpos].copy()
+                self._crowd_track = self.pedestrians.advance(
+                    self._dt, 1, robot_positions=[robot], robot_radius=self.config.robot.radius)
+                self._substep = k = 0
+            data.mocap_pos[self._ped_index, :2] = self._crowd_track[k]
         self.robot.apply_tracking_force(physics)
         self._substep += 1
 

@@ -5,16 +5,25 @@ vertical motion, never touching the floor, so no friction), a cylinder geom, two
 and one rangefinder per beam (``ray_000`` ... on sites whose +z axis is the beam direction;
 MuJoCo excludes the robot's own body from the rays). ``qpos`` is the world (x, y) position.
 
-Tracking. At the start of each control period the caller sets the reference (p, v, a, jerk);
-before every physics substep :meth:`OmniRobot.apply_tracking_force` applies, per axis,
+Tracking. At the start of each control period the caller sets the reference (p, v, a, jerk) and
+the number of physics substeps n in the period. The robot then plans one constant acceleration
+u_k per substep: the reference's mean acceleration over the substep, ``a + j·(t_k + dt/2)``, plus
+the smallest correction that makes the *discrete* trajectory of the model's integrator end
+exactly on the triple integrator's (p, v) after n substeps (one constant-force step is
+``v⁺ = v + dt·u`` and ``p⁺ = p + dt·v + c·dt²·u`` with c = 1/2 for RK4, 1 for semi-implicit
+Euler and the implicit integrators). Before every substep :meth:`OmniRobot.apply_tracking_force`
+applies, per axis,
 
-    F = m·ā + m·kv·(v_ref − v) + m·kp·(p_ref − p),
+    F = m·u_k + m·kv·(v_k − v) + m·kp·(p_k − p),
 
-where ā is the mean reference acceleration over the coming substep, ``a + j·(t + dt/2)``. With
-a force held constant over a step, MuJoCo's RK4 integrates the resulting constant
-acceleration exactly, so in free space the state after one period matches the triple
-integrator to ~j·dt³/12 per substep (≈ 0.03 mm over 0.1 s at the jerk limit); semi-implicit
-Euler is off by ~ā·dt²/2 per substep (mm), see ``tests/entities/test_robot.py``.
+with (p_k, v_k) the planned state at the substep start. In free space the feedback terms are zero
+and the state after one period equals the triple integrator to rounding (1e-12 m) with any of
+these integrators, so the default is the cheapest, Euler (a quarter of RK4's cost per step).
+Within the period an Euler plan back-loads the acceleration (a ramp of up to
+±5.5·(|a|·T + |j|·T²/2) m/s² around the reference, T the period), so mid-period states differ from the
+continuous reference by < 1 mm and < 7 cm/s; RK4's plan is the reference to ~j·dt³. In contact
+the feedback pushes back physically and the next period re-plans from the measured state. See
+``tests/entities/test_robot.py``.
 
 The controller method is deliberately not named ``before_substep``: that is a composer
 ``Entity`` hook (``physics, random_state``) which composer calls by itself; NavSim calls
@@ -26,6 +35,8 @@ MuJoCo has no acceleration state: :attr:`OmniRobot.acceleration` (the reference 
 
 from __future__ import annotations
 
+import functools
+
 import mujoco
 import numpy as np
 from dm_control import composer, mjcf
@@ -33,7 +44,7 @@ from dm_control import composer, mjcf
 from mjnav.geometry.raycast import beam_angles
 from mjnav.schema import LidarConfig, RobotConfig
 
-__all__ = ["ROBOT_CONTYPE", "OmniRobot", "integrator_value"]
+__all__ = ["ROBOT_CONTYPE", "OmniRobot", "integrator_value", "plan_substeps"]
 
 #: The robot is the only geom with a contype bit; scene geoms have conaffinity 1.
 ROBOT_CONTYPE = 1
@@ -180,9 +191,10 @@ class OmniRobot(composer.Entity):
 
     def reset_reference(self, position: np.ndarray) -> None:
         """Holds still at ``position``: zero velocity, acceleration and jerk."""
-        self.set_reference(position, np.zeros(2), np.zeros(2), np.zeros(2))
+        self.set_reference(position, np.zeros(2), np.zeros(2), np.zeros(2), substeps=1)
 
-    def set_reference(self, p: np.ndarray, v: np.ndarray, a: np.ndarray, jerk: np.ndarray) -> None:
+    def set_reference(self, p: np.ndarray, v: np.ndarray, a: np.ndarray, jerk: np.ndarray, *,
+                      substeps: int) -> None:
         """Starts a control period: the triple-integrator reference from (p, v, a) under ``jerk``.
 
         Args:
@@ -190,13 +202,17 @@ class OmniRobot(composer.Entity):
             v: (2,) velocity, m/s.
             a: (2,) acceleration, m/s².
             jerk: (2,) jerk held over the period, m/s³.
+            substeps: Physics steps in the period (the plan ends exactly after this many).
         """
+        if substeps < 1:
+            raise ValueError(f"substeps must be >= 1, got {substeps}")
         self._p = np.array(p, dtype=np.float64)
         self._v = np.array(v, dtype=np.float64)
         self._a = np.array(a, dtype=np.float64)
         self._j = np.array(jerk, dtype=np.float64)
-        self._pf, self._vf = [float(x) for x in self._p], [float(x) for x in self._v]
-        self._af, self._jf = [float(x) for x in self._a], [float(x) for x in self._j]
+        self._substeps = int(substeps)
+        self._plan: list[tuple[float, ...]] | None = None  # made at the first substep (needs dt)
+        self._k = 0
         self._t = 0.0
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -204,28 +220,97 @@ class OmniRobot(composer.Entity):
         p, v, a, j = self._p, self._v, self._a, self._j
         return (p + v * t + a * (t * t / 2) + j * (t**3 / 6), v + a * t + j * (t * t / 2), a + j * t)
 
-    def apply_tracking_force(self, physics: mjcf.Physics, t_in_period: float | None = None) -> None:
+    def plan(self, physics: mjcf.Physics) -> list[tuple[float, ...]]:
+        """The period's plan, made on first use: per substep ``(ux, uy, vx, vy, px, py)``.
+
+        u is the planned acceleration (m/s²), (v, p) the planned state at the substep start.
+        """
+        if self._plan is None:
+            self._bind(physics)
+            c = _STEP_POSITION_GAIN.get(int(physics.model.ptr.opt.integrator), 1.0)
+            self._plan = plan_substeps(self._p, self._v, self._a, self._j, self._substeps, self._dt, c)
+        return self._plan
+
+    def apply_tracking_force(self, physics: mjcf.Physics) -> None:
         """Writes the tracking force for the coming physics step and advances the period clock.
 
-        Args:
-            physics: The physics.
-            t_in_period: Time since the period start, s; None continues the internal clock.
+        Substeps beyond the planned ``substeps`` follow the continuous reference (mean
+        acceleration of the step plus feedback), so an over-long period still tracks it.
         """
-        self._bind(physics)
-        if t_in_period is not None:
-            self._t = float(t_in_period)
-        t, dt, cfg = self._t, self._dt, self._config
+        plan = self.plan(physics)
+        k, dt, cfg = self._k, self._dt, self._config
+        if k < len(plan):
+            ux, uy, vx, vy, px, py = plan[k]
+        else:
+            t = k * dt
+            p, v, _ = self.reference(t)
+            ux, uy = (self._a + self._j * (t + dt / 2)).tolist()
+            vx, vy, px, py = float(v[0]), float(v[1]), float(p[0]), float(p[1])
         data = physics.data.ptr
         qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
         m, kv, kp, fmax = cfg.mass, cfg.kv, cfg.kp, cfg.force_max
-        tm, t2, t3 = t + dt / 2, t * t / 2, t**3 / 6
-        for axis in range(2):  # plain floats: ~3x faster than 2-element numpy arithmetic
-            p, v, a, j = self._pf[axis], self._vf[axis], self._af[axis], self._jf[axis]
-            force = a + j * tm + kv * (v + a * t + j * t2 - qvel[self._dof_list[axis]])
-            if kp:
-                force += kp * (p + v * t + a * t2 + j * t3 - qpos[self._qpos_list[axis]])
-            ctrl[self._ctrl_list[axis]] = min(max(m * force, -fmax), fmax)
-        self._t = t + dt
+        q, d = self._qpos_list, self._dof_list
+        fx = ux + kv * (vx - qvel[d[0]])  # plain floats: ~3x faster than 2-element numpy arithmetic
+        fy = uy + kv * (vy - qvel[d[1]])
+        if kp:
+            fx += kp * (px - qpos[q[0]])
+            fy += kp * (py - qpos[q[1]])
+        ctrl[self._ctrl_list[0]] = min(max(m * fx, -fmax), fmax)
+        ctrl[self._ctrl_list[1]] = min(max(m * fy, -fmax), fmax)
+        self._k = k + 1
+        self._t = self._k * dt
+
+
+#: c in p⁺ = p + dt·v + c·dt²·u for one step of constant acceleration u, per MuJoCo integrator
+#: (no damping: the implicit integrators reduce to semi-implicit Euler).
+_STEP_POSITION_GAIN = {int(mujoco.mjtIntegrator.mjINT_RK4): 0.5, int(mujoco.mjtIntegrator.mjINT_EULER): 1.0,
+                       int(mujoco.mjtIntegrator.mjINT_IMPLICIT): 1.0,
+                       int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST): 1.0}
+
+
+@functools.lru_cache(maxsize=32)
+def _plan_matrix(n: int, dt: float, c: float) -> np.ndarray:
+    """(3n, 4) map from one axis' ``[p, v, a, jerk]`` to its plan rows ``[u_k, v_k, p_k]``, k < n.
+
+    The plan is linear in the reference: u = a + j·(t_k + dt/2) (mean reference accelerations)
+    plus the min-norm correction that makes ``v_n - v_0 = dt·Σ u_i`` and
+    ``p_n - p_0 - n·dt·v_0 = dt²·Σ (n-i-1+c)·u_i`` equal the triple integrator's over n·dt.
+    """
+    k = np.arange(n, dtype=np.float64)
+    lag = k[:, None] - k[None, :]
+    vel_from_u = (lag > 0) * dt  # v_k = v_0 + dt·Σ_{i<k} u_i
+    pos_from_u = np.where(lag > 0, lag - 1 + c, 0.0) * dt * dt  # p_k = p_0 + k·dt·v_0 + dt²·Σ ...
+    end = np.vstack([np.full(n, dt), dt * dt * (n - k - 1 + c)])
+    period = n * dt
+    target_from_aj = np.array([[period, period**2 / 2], [period**2 / 2, period**3 / 6]])  # rows Δv, Δp
+    u_from_aj = np.column_stack([np.ones(n), k * dt + dt / 2])
+    u_from_aj = u_from_aj + np.linalg.pinv(end) @ (target_from_aj - end @ u_from_aj)
+    blocks = np.zeros((n, 3, 4))
+    blocks[:, 0, 2:] = u_from_aj
+    blocks[:, 1, 1] = 1.0
+    blocks[:, 1, 2:] = vel_from_u @ u_from_aj
+    blocks[:, 2, 0] = 1.0
+    blocks[:, 2, 1] = k * dt
+    blocks[:, 2, 2:] = pos_from_u @ u_from_aj
+    return blocks.reshape(3 * n, 4)
+
+
+def plan_substeps(p: np.ndarray, v: np.ndarray, a: np.ndarray, jerk: np.ndarray, n: int, dt: float,
+                  c: float) -> list[tuple[float, ...]]:
+    """Per-substep accelerations whose discrete trajectory ends on the triple integrator.
+
+    Args:
+        p, v, a, jerk: (2,) reference state at the period start (m, m/s, m/s²) and jerk, m/s³.
+        n: Substeps in the period (n >= 2 ends exactly; n = 1 in the least-squares sense).
+        dt: Physics step, s.
+        c: Position gain of one constant-acceleration step (1/2 RK4, 1 Euler).
+
+    Returns:
+        n tuples ``(ux, uy, vx, vy, px, py)``: the acceleration of substep k (m/s²) and the planned
+        velocity and position at its start.
+    """
+    rows = _plan_matrix(int(n), float(dt), float(c)) @ np.array([p, v, a, jerk], dtype=np.float64)
+    return [tuple(r) for r in rows.reshape(n, 6).tolist()]
 
 
 def integrator_value(name: str) -> int:

@@ -95,8 +95,8 @@ class CrowdNavTask(composer.Task):
             jerk = self.core.plan(action, p, v, a)
         else:
             jerk = self.core.plan_with(self.planner, self._scan, p, v, a)
+        self._t_physics = time.perf_counter()  # the command starts the period (crowd, tracking)
         self.sim.apply_command(physics, jerk)
-        self._t_physics = time.perf_counter()
 
     def before_substep(self, physics, action, random_state) -> None:
         """Move the pedestrians and apply the tracking force."""

@@ -1,8 +1,9 @@
 """Pedestrian motion models: pure numpy/numba, no MuJoCo.
 
 A :class:`PedestrianModel` owns the planar state of ``P`` disc pedestrians inside a walled
-rectangle with static convex polygon obstacles. The crowd entity calls :meth:`~PedestrianModel.step`
-on every physics substep and writes :attr:`~PedestrianModel.positions` to the mocap bodies.
+rectangle with static convex polygon obstacles. The simulation calls :meth:`~PedestrianModel.advance`
+once per control period (one step per physics substep) and writes each step's positions to the
+mocap bodies before the matching physics step.
 
 Two models are provided:
 
@@ -109,6 +110,26 @@ class PedestrianModel(abc.ABC):
             robot_radius: Robot disc radius, metres.
         """
 
+    def advance(self, dt: float, steps: int, robot_positions: np.ndarray | None = None,
+                robot_radius: float = 0.225) -> np.ndarray:
+        """Takes ``steps`` steps of ``dt`` (one control period of substeps) and records them.
+
+        Args:
+            dt: Time step, s, > 0.
+            steps: Number of steps, >= 1.
+            robot_positions: (steps, 2) robot centre at the start of each step, metres; None when
+                there is no robot.
+            robot_radius: Robot disc radius, metres.
+
+        Returns:
+            (steps, P, 2) disc centres after each step, metres.
+        """
+        track = np.empty((steps, *self._pos.shape))
+        for k in range(steps):
+            self.step(dt, None if robot_positions is None else robot_positions[k], robot_radius)
+            track[k] = self._pos
+        return track
+
     @property
     def positions(self) -> np.ndarray:
         """Disc centres, (P, 2), metres (a copy)."""
@@ -174,16 +195,26 @@ class RandomWalkModel(PedestrianModel):
 
     def step(self, dt: float, robot_position: np.ndarray | None = None, robot_radius: float = 0.225) -> None:
         """Advances the crowd by ``dt`` seconds; the robot arguments are ignored."""
+        self.advance(dt, 1)
+
+    def advance(self, dt: float, steps: int, robot_positions: np.ndarray | None = None,
+                robot_radius: float = 0.225) -> np.ndarray:
+        """Takes ``steps`` steps in one kernel call (see :meth:`PedestrianModel.advance`)."""
         dt = self._check_step(dt)
-        if self._since_draw >= self._yaw_interval - _TIME_EPS:
-            self._omega = self._draw_yaw_rates()
-            self._since_draw = 0.0
-        self._since_draw += dt
+        omegas = np.empty((steps, self._heading.shape[0]))
+        for k in range(steps):  # yaw-rate draws in step order, as single steps would make them
+            if self._since_draw >= self._yaw_interval - _TIME_EPS:
+                self._omega = self._draw_yaw_rates()
+                self._since_draw = 0.0
+            self._since_draw += dt
+            omegas[k] = self._omega
+        track = np.empty((steps, *self._pos.shape))
         xmin, ymin, xmax, ymax = self._bounds
-        _random_walk_step(
-            self._pos, self._vel, self._heading, self._omega, self._speed, self._radius,
-            dt, xmin, ymin, xmax, ymax, self._verts, self._offsets,
+        _random_walk_steps(
+            self._pos, self._vel, self._heading, omegas, self._speed, self._radius,
+            dt, xmin, ymin, xmax, ymax, self._verts, self._offsets, track,
         )  # fmt: skip
+        return track
 
     def _draw_yaw_rates(self) -> np.ndarray:
         return self._rng.uniform(-self._yaw_rate, self._yaw_rate, size=self._heading.shape[0])
@@ -348,6 +379,19 @@ def _reflect(heading: float, nx: float, ny: float) -> float:
     if dot >= 0.0:
         return heading
     return math.atan2(s - 2.0 * dot * ny, c - 2.0 * dot * nx)
+
+
+@numba.njit(cache=True)
+def _random_walk_steps(
+    pos: np.ndarray, vel: np.ndarray, heading: np.ndarray, omegas: np.ndarray, speed: np.ndarray,
+    radius: np.ndarray, dt: float, xmin: float, ymin: float, xmax: float, ymax: float,
+    verts: np.ndarray, offsets: np.ndarray, track: np.ndarray,
+) -> None:  # fmt: skip
+    """``len(omegas)`` random-walk steps in place (yaw rates per step); positions into ``track``."""
+    for k in range(omegas.shape[0]):
+        _random_walk_step(pos, vel, heading, omegas[k], speed, radius, dt, xmin, ymin, xmax, ymax,
+                          verts, offsets)
+        track[k] = pos
 
 
 @numba.njit(cache=True)

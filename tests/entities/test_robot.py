@@ -8,7 +8,7 @@ import pytest
 from dm_control import mjcf
 
 from mjnav.entities.arena import NavArena
-from mjnav.entities.robot import OmniRobot, integrator_value
+from mjnav.entities.robot import OmniRobot, integrator_value, plan_substeps
 from mjnav.schema import ArenaConfig, LidarConfig, ObstacleConfig, RobotConfig
 
 ROBOT = RobotConfig()
@@ -37,7 +37,7 @@ def _tracking_errors(integrator: str, trials: int = 100) -> tuple[np.ndarray, np
         j = rng.uniform(-ROBOT.j_max, ROBOT.j_max, 2)
         mujoco.mj_resetData(model, data)
         robot.set_state(physics, p, v)
-        robot.set_reference(p, v, a, j)
+        robot.set_reference(p, v, a, j, substeps=SUBSTEPS)
         for _ in range(SUBSTEPS):
             robot.apply_tracking_force(physics)
             mujoco.mj_step(model, data)
@@ -51,17 +51,61 @@ def _tracking_errors(integrator: str, trials: int = 100) -> tuple[np.ndarray, np
     return np.asarray(pos_err), np.asarray(vel_err)
 
 
-def test_rk4_tracks_triple_integrator_to_hundredths_of_a_millimetre():
-    """RK4: after one period the position matches the triple-integrator prediction to < 0.05 mm."""
-    pos_err, vel_err = _tracking_errors("RK4")
-    assert pos_err.max() * 1e3 < 0.05  # mm; theory: j dt^3 / 12 per substep ~ 0.027 mm
-    assert vel_err.max() < 1e-9
+@pytest.mark.parametrize("integrator", ["Euler", "RK4", "implicitfast"])
+def test_period_ends_on_the_triple_integrator(integrator):
+    """With every integrator the planned forces land on the triple integrator to rounding."""
+    pos_err, vel_err = _tracking_errors(integrator)
+    assert pos_err.max() < 1e-9 and vel_err.max() < 1e-9
 
 
-def test_euler_tracking_error_is_millimetres():
-    """Semi-implicit Euler misses by ~a dt^2/2 per substep (mm), which is why RK4 is the default."""
-    pos_err, _ = _tracking_errors("Euler", trials=30)
-    assert 1.0 < pos_err.max() * 1e3 < 10.0
+def test_plan_stays_near_the_continuous_reference():
+    """Inside the period the Euler plan stays within 1 mm and 7 cm/s of the continuous reference.
+
+    Its accelerations back-load the period's velocity change (Euler moves each substep with its
+    end velocity): a ramp of at most 5.5·(|a|·T + |j|·T²/2) around the mean reference accelerations.
+    """
+    rng = np.random.default_rng(1)
+    dt = PERIOD / SUBSTEPS
+    for _ in range(50):
+        p, v = rng.uniform(-5, 5, 2), rng.uniform(-ROBOT.v_max, ROBOT.v_max, 2)
+        a, j = rng.uniform(-ROBOT.a_max, ROBOT.a_max, 2), rng.uniform(-ROBOT.j_max, ROBOT.j_max, 2)
+        plan = np.array(plan_substeps(p, v, a, j, SUBSTEPS, dt, 1.0))
+        t = np.arange(SUBSTEPS)[:, None] * dt
+        np.testing.assert_allclose(plan[:, 4:], p + v * t + a * t**2 / 2 + j * t**3 / 6, atol=1e-3)
+        np.testing.assert_allclose(plan[:, 2:4], v + a * t + j * t**2 / 2, atol=0.07)
+        bound = 5.5 * (np.abs(a) * PERIOD + np.abs(j) * PERIOD**2 / 2) + 1e-9
+        assert np.all(np.abs(plan[:, :2] - (a + j * (t + dt / 2))) <= bound)
+
+
+def test_without_the_plan_euler_misses_by_millimetres():
+    """The correction matters: Euler with the mean reference accelerations misses by mm."""
+    dt = PERIOD / SUBSTEPS
+    p, v, a, j = np.zeros(2), np.array([1.0, -1.0]), np.array([4.0, 2.0]), np.array([8.0, -8.0])
+    u = a + j * (np.arange(SUBSTEPS)[:, None] + 0.5) * dt
+    pos, vel = p.copy(), v.copy()
+    for k in range(SUBSTEPS):  # semi-implicit Euler
+        vel = vel + dt * u[k]
+        pos = pos + dt * vel
+    p_pred = p + v * PERIOD + a * PERIOD**2 / 2 + j * PERIOD**3 / 6
+    assert 1e-3 < np.abs(pos - p_pred).max() < 1e-2
+    plan = np.array(plan_substeps(p, v, a, j, SUBSTEPS, dt, 1.0))
+    assert np.abs(plan[:, :2] - u).max() > 0.1
+
+
+def test_single_substep_plan_is_least_squares():
+    """One substep cannot end on both p and v: the velocity of the plan is then not exact."""
+    plan = plan_substeps(np.zeros(2), np.zeros(2), np.ones(2), np.zeros(2), 1, 0.1, 1.0)
+    assert len(plan) == 1 and np.isfinite(plan[0]).all()
+
+
+def test_contact_feedback_pushes_towards_the_plan():
+    """Held back (velocity below the plan), the velocity feedback adds force along the plan."""
+    robot, physics = _free_space("Euler")
+    robot.set_reference(np.zeros(2), np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), substeps=SUBSTEPS)
+    robot.set_state(physics, np.zeros(2), np.zeros(2))  # stopped, the plan says 1 m/s along x
+    robot.apply_tracking_force(physics)
+    assert physics.data.ctrl[0] == pytest.approx(ROBOT.mass * ROBOT.kv * 1.0)
+    assert physics.data.ctrl[1] == pytest.approx(0.0)
 
 
 def test_only_planar_translation():
@@ -90,7 +134,7 @@ def test_rangefinder_sites_point_along_beams():
 def test_force_is_clipped_to_actuator_limits():
     """A huge reference error saturates the motors at force_max."""
     robot, physics = _free_space()
-    robot.set_reference(np.zeros(2), np.array([100.0, -100.0]), np.zeros(2), np.zeros(2))
+    robot.set_reference(np.zeros(2), np.array([100.0, -100.0]), np.zeros(2), np.zeros(2), substeps=SUBSTEPS)
     robot.apply_tracking_force(physics)
     np.testing.assert_allclose(physics.data.ctrl, [ROBOT.force_max, -ROBOT.force_max])
     np.testing.assert_allclose(physics.model.actuator_ctrlrange, [[-ROBOT.force_max, ROBOT.force_max]] * 2)

@@ -238,6 +238,17 @@ def test_same_seed_same_trajectory(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", MODELS)
+def test_advance_equals_single_steps(name: str) -> None:
+    """advance(dt, n) (one kernel call per period) is bit-identical to n single steps."""
+    scene, robot = _scene(seed=5), np.array([0.5, 0.5])
+    single, _ = _run(_model(name), scene, seed=7, steps=100, robot=robot)
+    model = _model(name)
+    model.reset(**scene, rng=np.random.default_rng(7))
+    tracks = [model.advance(DT, 5, robot_positions=np.tile(robot, (5, 1))) for _ in range(20)]
+    np.testing.assert_array_equal(np.concatenate(tracks), single)
+
+
+@pytest.mark.parametrize("name", MODELS)
 def test_robot_on_top_of_pedestrian_stays_finite(name: str) -> None:
     """A robot sitting on a pedestrian's centre produces no NaN and no wall crossing."""
     scene = _scene(seed=6, count=5)
