@@ -7,7 +7,8 @@ Prints (all from one run, so ratios are comparable on a noisy machine):
   * one environment through the composer task with random actions: steps/s and µs per part
     (physics = substeps incl. pedestrians and tracking force, lidar, region, action mapping, MPC,
     reward, observation, rest = composer and adapter overhead);
-  * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments with 1, 2 and all-core workers.
+  * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments with 1, 2 and all-core workers
+    (this process stepping the first block), and all-core worker processes with this process idle.
 """
 
 from __future__ import annotations
@@ -61,7 +62,7 @@ def single_env(config, steps: int, seed: int) -> tuple[float, dict[str, float], 
     return steps / total, parts, env
 
 
-def vec_rate(config, num_envs: int, workers: int, steps: int, seed: int) -> float:
+def vec_rate(config, num_envs: int, workers: int, steps: int, seed: int, step_in_main: bool = True) -> float:
     """Env steps/s of the rsl-rl adapter with random actions."""
     import torch
 
@@ -70,7 +71,7 @@ def vec_rate(config, num_envs: int, workers: int, steps: int, seed: int) -> floa
 
     torch.set_num_threads(1)
     env = NavVecEnv(TaskEnvFactory(config), num_envs=num_envs, seed=seed, workers=workers,
-                    max_episode_length=config.timing.episode_steps)
+                    max_episode_length=config.timing.episode_steps, step_in_main=step_in_main)
     try:
         gen = torch.Generator().manual_seed(seed)
         for _ in range(10):
@@ -101,10 +102,13 @@ def main(argv: list[str]) -> None:
         print(f"| {name} | {us:.1f} | {us / total:.0%} |")
     env.close()
     cores = os.cpu_count() or 1
-    print(f"\n| adapter: {opts['num_envs']} envs | workers | env steps/s |\n|---|---|---|")
-    for workers in sorted({1, 2, cores}):
-        r = vec_rate(config, int(opts["num_envs"]), workers, int(opts["vec_steps"]), int(opts["seed"]))
-        print(f"| NavVecEnv | {workers} | {r:,.0f} |")
+    print(f"\n| adapter: {opts['num_envs']} envs | workers | processes started | env steps/s |\n|---|---|---|---|")
+    rows = [(w, True) for w in sorted({1, 2, cores})] + [(max(2, cores), False)]
+    for workers, in_main in rows:
+        r = vec_rate(config, int(opts["num_envs"]), workers, int(opts["vec_steps"]), int(opts["seed"]), in_main)
+        started = workers - 1 if in_main else workers
+        note = "" if in_main else " (this process only waits)"
+        print(f"| NavVecEnv | {workers} | {started}{note} | {r:,.0f} |")
 
 
 if __name__ == "__main__":

@@ -97,7 +97,8 @@ class TrainConfig:
 
     Attributes:
         num_envs: Parallel environments N.
-        workers: Worker processes (-1: one per CPU core, at most N; 0: in-process).
+        workers: Workers stepping environments (-1: one per CPU core, at most N; 0: in-process). The
+            trainer process is worker 0, so W workers start W - 1 processes.
         start_method: Worker start method (``forkserver`` or ``spawn``; never plain fork with torch).
         iterations: Total PPO iterations of the run (a resumed run continues up to this).
         steps_per_env: Rollout length per environment and iteration.

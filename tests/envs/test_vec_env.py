@@ -106,15 +106,22 @@ def _rollout(env: NavVecEnv, steps: int, seed: int = 0) -> list[tuple]:
     return out
 
 
-@pytest.fixture(params=[0, 2], ids=["inprocess", "2workers"])
-def workers(request: pytest.FixtureRequest) -> int:
-    """Worker count: in-process and two processes."""
-    return request.param
+LAYOUTS = {
+    "inprocess": {"workers": 0},
+    "main+1process": {"workers": 2},
+    "2processes": {"workers": 2, "step_in_main": False},
+}
 
 
-def test_shapes_and_dtypes(workers: int) -> None:
+@pytest.fixture(params=list(LAYOUTS), ids=list(LAYOUTS))
+def workers(request: pytest.FixtureRequest) -> dict:
+    """Adapter layouts: in-process, this process plus one worker process, two worker processes."""
+    return LAYOUTS[request.param]
+
+
+def test_shapes_and_dtypes(workers: dict) -> None:
     """Observations, rewards, dones and time_outs have the rsl-rl shapes and dtypes."""
-    with NavVecEnv(FakeFactory(), num_envs=4, seed=1, workers=workers) as env:
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=1, **workers) as env:
         obs = env.get_observations()
         assert obs["policy"].shape == (4, OBS_DIM) and obs["policy"].dtype == torch.float32
         assert env.num_actions == ACT_DIM and env.max_episode_length == 20
@@ -164,10 +171,10 @@ def test_episode_length_buf_is_honoured() -> None:
         assert extras["log"]["episode/length"].tolist() == [2.0], "true steps, not the clock"
 
 
-def test_log_keys(workers: int) -> None:
+def test_log_keys(workers: dict) -> None:
     """extras['log'] carries episode/, reward/ and mpc/ keys with finite values."""
     seen: dict[str, list[float]] = {}
-    with NavVecEnv(FakeFactory(limit=8), num_envs=4, seed=4, workers=workers) as env:
+    with NavVecEnv(FakeFactory(limit=8), num_envs=4, seed=4, **workers) as env:
         gen = torch.Generator().manual_seed(0)
         for _ in range(20):
             _, _, _, extras = env.step(3.0 * torch.randn(4, ACT_DIM, generator=gen))
@@ -181,11 +188,11 @@ def test_log_keys(workers: int) -> None:
     assert all(k.count("/") == 1 and not k.startswith("/") for k in seen)
 
 
-def test_same_seed_same_rollouts(workers: int) -> None:
+def test_same_seed_same_rollouts(workers: dict) -> None:
     """Two adapters with the same seed produce identical rollouts; another seed differs."""
     runs = []
     for seed in (7, 7, 8):
-        with NavVecEnv(FakeFactory(limit=6), num_envs=4, seed=seed, workers=workers) as env:
+        with NavVecEnv(FakeFactory(limit=6), num_envs=4, seed=seed, **workers) as env:
             runs.append(_rollout(env, 15))
     pairs = zip(runs[0], runs[1], strict=True)
     same = all(torch.equal(a[0], b[0]) and torch.equal(a[1], b[1]) for a, b in pairs)
@@ -194,17 +201,40 @@ def test_same_seed_same_rollouts(workers: int) -> None:
 
 
 def test_worker_count_does_not_change_rollouts() -> None:
-    """In-process and two-worker adapters with the same seed produce identical rollouts."""
+    """Every adapter layout with the same seed produces identical rollouts."""
     runs = []
-    for workers in (0, 2):
-        with NavVecEnv(FakeFactory(limit=6), num_envs=5, seed=11, workers=workers) as env:
+    for layout in LAYOUTS.values():
+        with NavVecEnv(FakeFactory(limit=6), num_envs=5, seed=11, **layout) as env:
             runs.append(_rollout(env, 12))
-    assert all(torch.equal(a[0], b[0]) and torch.equal(a[2], b[2]) for a, b in zip(*runs, strict=True))
+    for other in runs[1:]:
+        assert all(torch.equal(a[0], b[0]) and torch.equal(a[2], b[2]) for a, b in zip(runs[0], other, strict=True))
 
 
-def test_worker_exception_surfaces(workers: int) -> None:
+def test_main_process_steps_the_first_block() -> None:
+    """With step_in_main, W workers are this process and W - 1 processes (blocks 1..W-1)."""
+    with NavVecEnv(FakeFactory(), num_envs=6, seed=0, workers=3) as env:
+        processes = [h for h in env._handles if hasattr(h, "process")]
+        assert [h.indices for h in processes] == [range(2, 4), range(4, 6)]
+        assert all(h.process.is_alive() for h in processes)
+    with NavVecEnv(FakeFactory(), num_envs=6, seed=0, workers=3, step_in_main=False) as env:
+        assert sum(hasattr(h, "process") for h in env._handles) == 3
+
+
+def test_main_block_exception_stops_the_worker_processes() -> None:
+    """An env of this process's block that raises surfaces as EnvError and stops the processes."""
+    env = NavVecEnv(FakeFactory(fail_env=0, fail_step=2), num_envs=4, seed=0, workers=2)
+    process = next(h.process for h in env._handles if hasattr(h, "process"))
+    env.step(torch.zeros(4, ACT_DIM))
+    with pytest.raises(EnvError, match="fake env exploded on purpose") as info:
+        env.step(torch.zeros(4, ACT_DIM))
+    assert "(in environment 0)" in str(info.value)
+    process.join(10.0)
+    assert not process.is_alive()
+
+
+def test_worker_exception_surfaces(workers: dict) -> None:
     """An env that raises surfaces as EnvError with the env's message and traceback."""
-    env = NavVecEnv(FakeFactory(fail_env=3, fail_step=2), num_envs=4, seed=0, workers=workers)
+    env = NavVecEnv(FakeFactory(fail_env=3, fail_step=2), num_envs=4, seed=0, **workers)
     env.step(torch.zeros(4, ACT_DIM))
     with pytest.raises(EnvError, match="fake env exploded on purpose") as info:
         env.step(torch.zeros(4, ACT_DIM))
