@@ -61,7 +61,7 @@ class NavSim:
             lidar_method: Evaluation method of the ``mujoco`` LiDAR backend (``multiray``, or
                 ``sensor``, which needs the rangefinders).
             rangefinders: Compile the robot's 360 rangefinder sites and sensors (spec §2). False
-                saves ~40% of each RK4 step; the ``mujoco`` backend then casts with mj_multiRay.
+                saves ~40% of each bare mj_step; the ``mujoco`` backend then casts with mj_multiRay.
         """
         _check_heights(config)
         self.config = config

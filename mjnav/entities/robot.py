@@ -61,7 +61,7 @@ class OmniRobot(composer.Entity):
             config: Radius, mass, height, limits and tracking gains (SI units).
             lidar: Beam count and height of the rangefinders.
             rangefinders: Add the per-beam sites and rangefinder sensors (spec §2). Their site
-                poses cost MuJoCo ~3 us per kinematics pass (4 per RK4 step); without them the
+                poses cost MuJoCo ~4 us per kinematics pass (1 per Euler step, 4 per RK4 step); without them the
                 ``mujoco`` LiDAR backend still works through ``mj_multiRay``.
             name: MJCF model name (the namespace of its elements).
         """
