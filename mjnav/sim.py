@@ -8,7 +8,7 @@ poses, mesh ids and radii into the compiled model and data.
 
 Per control period (``timing.control_period``, ``timing.substeps`` physics steps):
 
-1. :meth:`apply_command` sets the robot's triple-integrator reference from its state and jerk;
+1. :meth:`apply_command` sets the robot's triple-integrator reference from its state and jerk
    and moves the crowd through the period, one step per physics substep;
 2. before every physics step, :meth:`before_substep` places the pedestrians of that substep
    (mocap positions, so their motion is smooth) and writes the tracking force;

@@ -124,6 +124,7 @@ class PedestrianModel(abc.ABC):
         Returns:
             (steps, P, 2) disc centres after each step, metres.
         """
+        _check_steps(steps)
         track = np.empty((steps, *self._pos.shape))
         for k in range(steps):
             self.step(dt, None if robot_positions is None else robot_positions[k], robot_radius)
@@ -201,6 +202,7 @@ class RandomWalkModel(PedestrianModel):
                 robot_radius: float = 0.225) -> np.ndarray:
         """Takes ``steps`` steps in one kernel call (see :meth:`PedestrianModel.advance`)."""
         dt = self._check_step(dt)
+        _check_steps(steps)
         omegas = np.empty((steps, self._heading.shape[0]))
         for k in range(steps):  # yaw-rate draws in step order, as single steps would make them
             if self._since_draw >= self._yaw_interval - _TIME_EPS:
@@ -218,6 +220,12 @@ class RandomWalkModel(PedestrianModel):
 
     def _draw_yaw_rates(self) -> np.ndarray:
         return self._rng.uniform(-self._yaw_rate, self._yaw_rate, size=self._heading.shape[0])
+
+
+def _check_steps(steps: int) -> None:
+    """Raises unless ``steps`` is an integer >= 1."""
+    if not (isinstance(steps, (int, np.integer)) and steps >= 1):
+        raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
 
 
 def make_pedestrian_model(config: CrowdConfig) -> PedestrianModel:

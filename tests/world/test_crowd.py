@@ -246,6 +246,9 @@ def test_advance_equals_single_steps(name: str) -> None:
     model.reset(**scene, rng=np.random.default_rng(7))
     tracks = [model.advance(DT, 5, robot_positions=np.tile(robot, (5, 1))) for _ in range(20)]
     np.testing.assert_array_equal(np.concatenate(tracks), single)
+    for bad in (0, -1, 2.5):
+        with pytest.raises(ValueError, match="steps"):
+            model.advance(DT, bad)
 
 
 @pytest.mark.parametrize("name", MODELS)
