@@ -93,9 +93,15 @@ def test_without_the_plan_euler_misses_by_millimetres():
 
 
 def test_single_substep_plan_is_least_squares():
-    """One substep cannot end on both p and v: the velocity of the plan is then not exact."""
+    """One substep cannot end on both p and v: its acceleration is the least-squares compromise.
+
+    a = 1 m/s² over one Euler step of 0.1 s: Δv = 0.1·u should be 0.1 and Δp = 0.01·u should be
+    0.005, so u = (0.1·0.1 + 0.01·0.005) / (0.1² + 0.01²) = 0.995 m/s², not 1.
+    """
     plan = plan_substeps(np.zeros(2), np.zeros(2), np.ones(2), np.zeros(2), 1, 0.1, 1.0)
-    assert len(plan) == 1 and np.isfinite(plan[0]).all()
+    assert len(plan) == 1
+    np.testing.assert_allclose(plan[0][:2], [0.01005 / 0.0101] * 2, rtol=1e-12)
+    np.testing.assert_allclose(plan[0][2:], 0.0, atol=1e-15)  # state at the substep start
 
 
 def test_contact_feedback_pushes_towards_the_plan():
