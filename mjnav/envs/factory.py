@@ -7,6 +7,7 @@ from pathlib import Path
 from dm_control import composer
 
 from mjnav.config import TaskConfig, load_task
+from mjnav.envs.environment import NavEnvironment
 from mjnav.tasks.nav import CrowdNavTask
 
 __all__ = ["make_env", "resolve_config"]
@@ -34,11 +35,12 @@ def make_env(
         overrides: Dotted config overrides (``["crowd.count=25"]``).
 
     Returns:
-        The environment; ``env.task`` is the :class:`CrowdNavTask`. It compiles once here
+        The environment (a :class:`NavEnvironment`, composer's with one physics-state check per
+        control step); ``env.task`` is the :class:`CrowdNavTask`. It compiles once here
         (first reset) and never again.
     """
     config = resolve_config(task, overrides)
-    return composer.Environment(
+    return NavEnvironment(
         CrowdNavTask(config),
         random_state=seed,
         strip_singleton_obs_buffer_dim=True,

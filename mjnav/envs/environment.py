@@ -1,0 +1,60 @@
+"""``NavEnvironment``: composer's environment with one physics-state check per control step."""
+
+from __future__ import annotations
+
+import logging
+
+import mujoco
+import numpy as np
+from dm_control import composer
+from dm_control.rl import control
+
+__all__ = ["NavEnvironment"]
+
+_WARNING_NAMES = list(mujoco.mjtWarning.__members__)
+
+
+class NavEnvironment(composer.Environment):
+    """A ``composer.Environment`` whose substeps skip composer's per-substep state check.
+
+    ``Physics.step`` wraps every ``mj_step`` in ``check_invalid_state`` (copy and compare
+    MuJoCo's warning counters through a context manager); at five substeps per control step
+    that is about a tenth of a whole control step of this task. Here the counters are
+    snapshotted before the first substep and compared after the last one, raising the same
+    ``PhysicsError`` inside composer's own handler (or logging it, as ``Physics`` does under
+    ``suppress_physics_errors``). Hooks, observation updates, rewards and termination are
+    composer's. With ``legacy_step=True`` every substep takes composer's path unchanged.
+
+    Relies on composer internals (``_hooks``, ``_physics``, ``_n_sub_steps``) of the pinned
+    dm-control release; ``tests/envs/test_environment.py`` checks the rollouts match.
+    """
+
+    def step(self, action):
+        """One control step (see ``composer.Environment.step``)."""
+        self._substep_index = 0
+        return super().step(action)
+
+    def _substep(self, action) -> None:
+        physics = self._physics
+        if physics.legacy_step:
+            super()._substep(action)
+            return
+        if self._substep_index == 0:
+            self._warnings_before = physics.data.warning.number.copy()
+        self._hooks.before_substep(self._physics_proxy, action, self._random_state)
+        mujoco.mj_step(physics.model.ptr, physics.data.ptr)
+        self._hooks.after_substep(self._physics_proxy, self._random_state)
+        self._substep_index += 1
+        if self._substep_index == self._n_sub_steps:
+            self._check_warnings(physics)
+
+    def _check_warnings(self, physics) -> None:
+        """Raises (or logs) a ``PhysicsError`` for MuJoCo warnings raised during this step."""
+        new = physics.data.warning.number > self._warnings_before
+        if not new.any():
+            return
+        names = ", ".join(np.compress(new, _WARNING_NAMES))
+        message = f"Physics state is invalid. Warning(s) raised: {names}"
+        if getattr(physics, "_warnings_cause_exception", True):
+            raise control.PhysicsError(message)
+        logging.warning(message)

@@ -1,0 +1,70 @@
+"""NavEnvironment steps exactly as composer.Environment and still reports an invalid physics state."""
+
+import numpy as np
+import pytest
+from dm_control import composer
+from dm_control.rl import control
+
+from mjnav.config import load_task
+from mjnav.envs.environment import NavEnvironment
+from mjnav.tasks.nav import CrowdNavTask
+
+
+def _make(cls, **kwargs):
+    return cls(CrowdNavTask(load_task("stage7")), random_state=3, strip_singleton_obs_buffer_dim=True,
+               recompile_mjcf_every_episode=False, legacy_step=kwargs.pop("legacy_step", False), **kwargs)
+
+
+def _rollout(env, steps: int = 40) -> list:
+    actions = np.random.default_rng(0).normal(size=(steps, 4)).astype(np.float32)
+    out = [env.reset().observation["observation"].copy()]
+    for a in actions:
+        ts = env.step(a)
+        out += [ts.observation["observation"].copy(), ts.reward, ts.discount]
+    out.append(env.physics.data.qpos.copy())
+    return out
+
+
+@pytest.mark.parametrize("legacy_step", [False, True])
+def test_same_rollout_as_composer(legacy_step: bool) -> None:
+    """Observations, rewards, discounts and the final state match composer's bit for bit."""
+    ours = _rollout(_make(NavEnvironment, legacy_step=legacy_step))
+    theirs = _rollout(_make(composer.Environment, legacy_step=legacy_step))
+    assert len(ours) == len(theirs)
+    for a, b in zip(ours, theirs):
+        np.testing.assert_array_equal(a, b)
+
+
+def _poison_at_substep(env, substep: int) -> None:
+    """The robot position turns NaN before physics substep ``substep`` of every control step."""
+    task, original = env.task, env.task.before_substep
+    count = {"k": 0}
+
+    def before_substep(physics, action, random_state):
+        original(physics, action, random_state)
+        if count["k"] % task.physics_steps_per_control_step == substep:
+            physics.data.qpos[0] = np.nan
+        count["k"] += 1
+
+    task.before_substep = before_substep
+
+
+@pytest.mark.parametrize("cls", [NavEnvironment, composer.Environment])
+def test_mid_step_warning_raises_physics_error(cls) -> None:
+    """A MuJoCo warning at a middle substep raises PhysicsError naming it, as composer does."""
+    env = _make(cls)
+    env.reset()
+    _poison_at_substep(env, 2)
+    with pytest.raises(control.PhysicsError, match="mjWARN_BADQPOS"):
+        env.step(np.zeros(4, dtype=np.float32))
+
+
+def test_suppressed_warning_is_logged_not_raised(caplog) -> None:
+    """Under Physics.suppress_physics_errors the warning is logged and the step completes."""
+    env = _make(NavEnvironment)
+    env.reset()
+    _poison_at_substep(env, 1)
+    with env.physics.suppress_physics_errors():
+        ts = env.step(np.zeros(4, dtype=np.float32))
+    assert np.all(np.isfinite(ts.observation["observation"]))
+    assert "mjWARN_BADQPOS" in caplog.text
