@@ -373,7 +373,7 @@ class Mpc:
         self, s: Arr, x: Arr, sol: QpSolution, fallback: str | None, rows: int, elapsed: float
     ) -> MpcResult:
         n_steps = self.config.horizon
-        jerks = np.stack([x[:n_steps], x[n_steps : 2 * n_steps]], axis=1)
+        jerks = np.ascontiguousarray(x[: 2 * n_steps].reshape(2, n_steps).T)
         traj = rollout(s, jerks, self.config.t_c)
         status = "solved" if fallback is None else "fallback"
         slack = float(x[-1]) if self.config.soft else 0.0

@@ -40,7 +40,8 @@ class NavEnvironment(composer.Environment):
             super()._substep(action)
             return
         if self._substep_index == 0:
-            self._warnings_before = physics.data.warning.number.copy()
+            self._warnings = physics.data.warning.number  # a view: read again after the last substep
+            self._warnings_before = self._warnings.copy()
         self._hooks.before_substep(self._physics_proxy, action, self._random_state)
         mujoco.mj_step(physics.model.ptr, physics.data.ptr)
         self._hooks.after_substep(self._physics_proxy, self._random_state)
@@ -50,7 +51,7 @@ class NavEnvironment(composer.Environment):
 
     def _check_warnings(self, physics) -> None:
         """Raises (or logs) a ``PhysicsError`` for MuJoCo warnings raised during this step."""
-        new = physics.data.warning.number > self._warnings_before
+        new = self._warnings > self._warnings_before
         if not new.any():
             return
         names = ", ".join(np.compress(new, _WARNING_NAMES))

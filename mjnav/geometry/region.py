@@ -140,7 +140,7 @@ def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig 
     cfg = config if config is not None else _DEFAULT
     r, th = _validate(ranges, angles, cfg.num_points)
     cos, sin, ordered = _trig(th)
-    shrunk = np.clip(r, 0.0, cfg.max_range) - cfg.inflation
+    shrunk = np.minimum(r, cfg.max_range) - cfg.inflation  # r < 0 ends at 0 as well, below
     np.maximum(shrunk, 0.0, out=shrunk)
     status, verts, normals, offsets, polar, xy = _galaxy(
         shrunk * cos, shrunk * sin, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points, ordered

@@ -26,6 +26,8 @@ from mjnav.tasks import reward as reward_lib
 
 __all__ = ["NavCore", "Outcome", "Planner", "PlannerInput", "StepRecord", "sigmoid"]
 
+_ORIGIN = np.zeros(2)
+
 
 class Outcome(enum.Enum):
     """How an episode stands; decides discount, termination and metrics."""
@@ -159,7 +161,7 @@ class NavCore:
         t0 = time.perf_counter()
         points = map_action(sigmoid(action), self.region, velocity, accel, goal_rel, self.config.action)
         polygon = self.region.vertices if self.region.success else None
-        state = np.stack([np.zeros(2), velocity, accel])
+        state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
         result = self._mpc.solve(state, points.q_s, points.q_l_ref, polygon, points.goal_inside)
         self.timers["action"] += t1 - t0
@@ -171,18 +173,19 @@ class NavCore:
 
     def _remember(self, points, result, position: np.ndarray, plan_ok: bool) -> None:
         q1, qn = result.positions[0], result.positions[-1]
+        q_s, q_l, q1_world, qn_world = position + points.q_s, position + points.q_l, position + q1, position + qn
         self._pending = {
-            "plan": obs_lib.Plan(points.q_s, points.q_l, q1, qn, position + q1, position + qn) if plan_ok else None,
-            "q_s": position + points.q_s,
-            "q_l": position + points.q_l,
-            "q1": position + q1,
-            "qn": position + qn,
+            "plan": obs_lib.Plan(points.q_s, points.q_l, q1, qn, q1_world, qn_world) if plan_ok else None,
+            "q_s": q_s,
+            "q_l": q_l,
+            "q1": q1_world,
+            "qn": qn_world,
             "plan_ok": plan_ok,
         }
         polygon = position + self.region.vertices if self.region.success else position + self.region.boundary_xy
         self.record = StepRecord(
-            q_s=position + points.q_s,
-            q_l=position + points.q_l,
+            q_s=q_s,
+            q_l=q_l,
             q_l_target=position + points.q_l_ref,
             predicted=position + result.positions,
             polygon=polygon,

@@ -70,7 +70,9 @@ def polygon_block(boundary: np.ndarray, inflation: float) -> np.ndarray:
         (2M,) float64 with r̂ = clip((r + R_inf)/10, 0, 1) and θ̂ = θ/2π.
     """
     out = np.empty(2 * len(boundary))
-    out[0::2] = np.clip((boundary[:, 0] + inflation) / RANGE_SCALE, 0.0, 1.0)
+    r_hat = (boundary[:, 0] + inflation) / RANGE_SCALE
+    np.maximum(r_hat, 0.0, out=r_hat)
+    out[0::2] = np.minimum(r_hat, 1.0, out=r_hat)
     out[1::2] = boundary[:, 1] / (2.0 * math.pi)
     return out
 

@@ -76,7 +76,7 @@ def approach(prev_distance: float | None, distance: float, cfg: RewardConfig) ->
         return 0.0
     progress = prev_distance - distance
     gain = cfg.approach_gain if progress > 0 else cfg.recede_gain
-    return float(np.clip(gain * progress, -cfg.approach_clip, cfg.approach_clip))
+    return min(max(float(gain * progress), -cfg.approach_clip), cfg.approach_clip)
 
 
 def feasibility(inp: RewardInputs, cfg: RewardConfig) -> float:
