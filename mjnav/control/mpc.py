@@ -238,6 +238,7 @@ class Mpc:
         q_l: np.ndarray,
         polygon: np.ndarray | None = None,
         goal_inside: bool = False,
+        halfplanes: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> MpcResult:
         """Plan one step.
 
@@ -250,6 +251,9 @@ class Mpc:
                 accepted), or ``None`` to plan without the region constraint.
             goal_inside: Whether the goal is inside the polygon (selects the stop cost for
                 ``cost_stop='goal_inside'``).
+            halfplanes: The polygon's ``(normals (K, 2), offsets (K,))`` if already known (as
+                :class:`mjnav.geometry.region.Region` carries them); computed from ``polygon``
+                otherwise. Ignored without a polygon.
 
         Returns:
             The :class:`MpcResult`; on QP failure a fallback result (never raises).
@@ -258,7 +262,7 @@ class Mpc:
             ValueError: On non-finite or badly shaped inputs.
         """
         start = time.perf_counter()
-        s, qs, ql, normals, offsets = _validate(state, q_s, q_l, polygon)
+        s, qs, ql, normals, offsets = _validate(state, q_s, q_l, polygon, halfplanes)
         cfg = self.config
         self.stats["solves"] += 1
         self._plan_age += 1
@@ -394,7 +398,7 @@ class Mpc:
 
 
 def _validate(
-    state: Arr, q_s: Arr, q_l: Arr, polygon: Arr | None
+    state: Arr, q_s: Arr, q_l: Arr, polygon: Arr | None, known: tuple[Arr, Arr] | None = None
 ) -> tuple[Arr, Arr, Arr, Arr | None, Arr | None]:
     s = np.asarray(state, dtype=np.float64)
     if s.shape != (3, 2):
@@ -403,14 +407,19 @@ def _validate(
     for name, arr in (("q_s", qs), ("q_l", ql)):
         if arr.shape != (2,):
             raise ValueError(f"{name}: expected shape (2,), got {arr.shape}")
-    if not (np.isfinite(s).all() and np.isfinite(qs).all() and np.isfinite(ql).all()):
+    values = s.ravel().tolist() + qs.tolist() + ql.tolist()  # 10 floats: cheaper than 3 ufunc reductions
+    if not all(map(math.isfinite, values)):
         raise ValueError(f"state/q_s/q_l: non-finite values (state={s.tolist()}, q_s={qs}, q_l={ql})")
     if polygon is None:
         return s, qs, ql, None, None
     poly = np.asarray(polygon, dtype=np.float64)
-    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not np.isfinite(poly).all():
+    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not (math.isfinite(poly.sum()) or np.isfinite(poly).all()):
         raise ValueError(f"polygon: expected finite (K >= 3, 2) vertices, got shape {poly.shape}")
-    normals, offsets = halfplanes(poly)
+    if known is None:
+        return s, qs, ql, *halfplanes(poly)
+    normals, offsets = known
+    if normals.shape != poly.shape or offsets.shape != poly.shape[:1]:
+        raise ValueError(f"halfplanes: shapes {normals.shape}, {offsets.shape} do not match polygon {poly.shape}")
     return s, qs, ql, normals, offsets
 
 

@@ -160,10 +160,11 @@ class NavCore:
         goal_rel = self.goal - position
         t0 = time.perf_counter()
         points = map_action(sigmoid(action), self.region, velocity, accel, goal_rel, self.config.action)
-        polygon = self.region.vertices if self.region.success else None
+        region = self.region
+        polygon, planes = (region.vertices, (region.normals, region.offsets)) if region.success else (None, None)
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
-        result = self._mpc.solve(state, points.q_s, points.q_l_ref, polygon, points.goal_inside)
+        result = self._mpc.solve(state, points.q_s, points.q_l_ref, polygon, points.goal_inside, planes)
         self.timers["action"] += t1 - t0
         self.timers["mpc"] += time.perf_counter() - t1
         plan_ok = result.fallback is None

@@ -259,6 +259,27 @@ def test_invalid_inputs_raise_value_error():
         )
 
 
+def test_region_halfplanes_give_the_same_plan():
+    """Passing the region's own half-planes plans exactly as computing them from the vertices."""
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        while not (region := compute_region(random_scan(rng), ANGLES)).success:
+            pass
+        state = np.array([[0.0, 0.0], rng.uniform(-2, 2, 2), rng.uniform(-3, 3, 2)])
+        q_s, q_l = rng.uniform(-1, 1, 2), rng.uniform(-6, 6, 2)
+        plain = Mpc().solve(state, q_s, q_l, region.vertices)
+        given = Mpc().solve(state, q_s, q_l, region.vertices, halfplanes=(region.normals, region.offsets))
+        np.testing.assert_array_equal(plain.jerks, given.jerks)
+        assert plain.fallback == given.fallback
+
+
+def test_halfplanes_must_match_the_polygon():
+    """Half-planes with a row count other than the polygon's vertex count are rejected."""
+    normals, offsets = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]), np.ones(3)
+    with pytest.raises(ValueError, match="halfplanes"):
+        Mpc().solve(np.zeros((3, 2)), np.zeros(2), np.zeros(2), SQUARE, halfplanes=(normals, offsets))
+
+
 def test_osqp_reset_forgets_earlier_episodes() -> None:
     """After reset(), an OSQP MPC solves exactly like a fresh one (no state carried across episodes)."""
     rng = np.random.default_rng(5)
