@@ -39,11 +39,12 @@ class NavEnvironment(composer.Environment):
         if physics.legacy_step:
             super()._substep(action)
             return
-        if self._substep_index == 0:
+        if self._substep_index == 0:  # the pointers stay valid for the step (no recompile mid-step)
+            self._model_ptr, self._data_ptr = physics.model.ptr, physics.data.ptr
             self._warnings = physics.data.warning.number  # a view: read again after the last substep
             self._warnings_before = self._warnings.copy()
         self._hooks.before_substep(self._physics_proxy, action, self._random_state)
-        mujoco.mj_step(physics.model.ptr, physics.data.ptr)
+        mujoco.mj_step(self._model_ptr, self._data_ptr)
         self._hooks.after_substep(self._physics_proxy, self._random_state)
         self._substep_index += 1
         if self._substep_index == self._n_sub_steps:
