@@ -61,8 +61,9 @@ class RewardInputs:
     control_period: float
 
 
-def _norm(x: np.ndarray) -> float:
-    return math.hypot(float(x[0]), float(x[1]))
+def _dist(a: np.ndarray, b: np.ndarray) -> float:
+    """Euclidean distance of two 2-vectors (Python floats: cheaper than numpy on 2 elements)."""
+    return math.dist(a.tolist(), b.tolist())
 
 
 def proximity(min_scan: float, cfg: RewardConfig) -> float:
@@ -83,7 +84,7 @@ def feasibility(inp: RewardInputs, cfg: RewardConfig) -> float:
     """‖Q_s − p₁‖ + ‖Q_l − p_N‖ when the plan succeeded, capped so |weight·term| ≤ clip."""
     if not inp.plan_ok:
         return 0.0
-    gap = _norm(inp.q_s - inp.q1) + _norm(inp.q_l - inp.qn)
+    gap = _dist(inp.q_s, inp.q1) + _dist(inp.q_l, inp.qn)
     cap = cfg.feasibility_clip / abs(cfg.feasibility) if cfg.feasibility else math.inf
     return min(gap, cap)
 
@@ -92,12 +93,12 @@ def change(inp: RewardInputs) -> float:
     """‖ΔQ_s‖ + ‖ΔQ_l‖ (world frame) when the previous plan succeeded, else 0."""
     if not inp.prev_plan_ok or inp.prev_q_s is None or inp.prev_q_l is None:
         return 0.0
-    return _norm(inp.q_s - inp.prev_q_s) + _norm(inp.q_l - inp.prev_q_l)
+    return _dist(inp.q_s, inp.prev_q_s) + _dist(inp.q_l, inp.prev_q_l)
 
 
 def compute_terms(inp: RewardInputs, cfg: RewardConfig) -> dict[str, float]:
     """Unweighted value of every term in :data:`TERMS`."""
-    dv = np.abs(inp.velocity - inp.prev_velocity)
+    (vx, vy), (px, py) = inp.velocity.tolist(), inp.prev_velocity.tolist()
     return {
         "success": float(inp.success),
         "collision": float(inp.collision),
@@ -105,8 +106,8 @@ def compute_terms(inp: RewardInputs, cfg: RewardConfig) -> dict[str, float]:
         "approach": approach(inp.prev_distance, inp.distance, cfg),
         "feasibility": feasibility(inp, cfg),
         "change": change(inp),
-        "slow": 1.0 - _norm(inp.velocity) / cfg.speed_scale,
-        "velocity_change": float(dv[0] + dv[1]) / inp.control_period / 2.0,
+        "slow": 1.0 - math.hypot(vx, vy) / cfg.speed_scale,
+        "velocity_change": (abs(vx - px) + abs(vy - py)) / inp.control_period / 2.0,
         "constant": 1.0,
     }
 
