@@ -12,6 +12,7 @@ from dm_control.rl import control
 __all__ = ["NavEnvironment"]
 
 _WARNING_NAMES = list(mujoco.mjtWarning.__members__)
+_LOG = logging.getLogger(__name__)
 
 
 class NavEnvironment(composer.Environment):
@@ -59,4 +60,4 @@ class NavEnvironment(composer.Environment):
         message = f"Physics state is invalid. Warning(s) raised: {names}"
         if getattr(physics, "_warnings_cause_exception", True):
             raise control.PhysicsError(message)
-        logging.warning(message)
+        _LOG.warning(message)

@@ -11,8 +11,14 @@ from mjnav.tasks.nav import CrowdNavTask
 
 
 def _make(cls, **kwargs):
-    return cls(CrowdNavTask(load_task("stage7")), random_state=3, strip_singleton_obs_buffer_dim=True,
-               recompile_mjcf_every_episode=False, legacy_step=kwargs.pop("legacy_step", False), **kwargs)
+    return cls(
+        CrowdNavTask(load_task("stage7")),
+        random_state=3,
+        strip_singleton_obs_buffer_dim=True,
+        recompile_mjcf_every_episode=False,
+        legacy_step=kwargs.pop("legacy_step", False),
+        **kwargs,
+    )
 
 
 def _rollout(env, steps: int = 40) -> list:
