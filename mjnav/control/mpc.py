@@ -413,7 +413,8 @@ def _validate(
     if polygon is None:
         return s, qs, ql, None, None
     poly = np.asarray(polygon, dtype=np.float64)
-    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not (math.isfinite(poly.sum()) or np.isfinite(poly).all()):
+    finite = poly.size > 0 and (math.isfinite(poly.sum()) or bool(np.isfinite(poly).all()))  # sum: fast path
+    if poly.ndim != 2 or poly.shape[1] != 2 or poly.shape[0] < 3 or not finite:
         raise ValueError(f"polygon: expected finite (K >= 3, 2) vertices, got shape {poly.shape}")
     if known is None:
         return s, qs, ql, *halfplanes(poly)
