@@ -12,6 +12,7 @@ ray (including degenerate zero-length ones) are never hit.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -22,6 +23,7 @@ __all__ = [
     "beam_angles",
     "cast_rays",
     "cast_rays_kernel",
+    "cast_uniform_rays_kernel",
     "polygon_segments",
     "wall_segments",
 ]
@@ -120,6 +122,58 @@ def cast_rays_kernel(
     best = np.full(cos_a.shape[0], max_range)
     _hit_segments(ox, oy, cos_a, sin_a, segments, best)
     _hit_circles(ox, oy, cos_a, sin_a, circles, best)
+    return best
+
+
+@njit(cache=True, fastmath=False)
+def _hit_circles_uniform(
+    ox: float, oy: float, dx: np.ndarray, dy: np.ndarray, circles: np.ndarray, best: np.ndarray
+) -> None:
+    """:func:`_hit_circles` for ``beam_angles(B)`` directions, testing only the beams that can hit.
+
+    A circle that does not contain the origin subtends ``±asin(r/d)`` around its centre
+    direction; beams more than that plus one beam spacing away have a negative discriminant
+    (by a margin far above rounding), so skipping them leaves every reading bit-identical.
+    """
+    n = dx.shape[0]
+    spacing = 2.0 * math.pi / n
+    for c in range(circles.shape[0]):
+        fx, fy = ox - circles[c, 0], oy - circles[c, 1]
+        cc = fx * fx + fy * fy - circles[c, 2] * circles[c, 2]
+        first, count = 0, n
+        if cc > 0.0:  # origin outside: only the beams in the circle's angular shadow
+            dist = math.sqrt(fx * fx + fy * fy)
+            half = math.asin(min(circles[c, 2] / dist, 1.0))
+            centre = math.atan2(-fy, -fx)
+            first = math.floor((centre - half) / spacing) - 1  # one beam of margin each side
+            last = math.ceil((centre + half) / spacing) + 1
+            count = min(last - first + 1, n)
+        for k in range(count):
+            b = (first + k) % n
+            half_b = fx * dx[b] + fy * dy[b]
+            disc = half_b * half_b - cc
+            if disc >= 0.0:
+                root = np.sqrt(disc)
+                t = -half_b - root
+                if t < 0.0:
+                    t = -half_b + root  # origin inside: exit point (mj_ray convention)
+                if t >= 0.0 and t < best[b]:
+                    best[b] = t
+
+
+@njit(cache=True, fastmath=False)
+def cast_uniform_rays_kernel(
+    ox: float, oy: float, cos_a: np.ndarray, sin_a: np.ndarray, segments: np.ndarray,
+    circles: np.ndarray, max_range: float,
+) -> np.ndarray:
+    """:func:`cast_rays_kernel` for the directions of ``beam_angles(B)`` only (same readings).
+
+    Circles are tested only against the beams in their angular shadow, which is what makes a
+    crowd cheap to scan.
+    """
+    best = np.full(cos_a.shape[0], max_range)
+    _hit_segments(ox, oy, cos_a, sin_a, segments, best)
+    _hit_circles_uniform(ox, oy, cos_a, sin_a, circles, best)
     return best
 
 

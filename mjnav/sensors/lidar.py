@@ -5,7 +5,7 @@ of the beams ``beam_angles(beams)`` (beam 0 along +x, counter-clockwise) cast ho
 from the robot centre at LiDAR height; the simulation adds the Gaussian noise, so the backends
 can be compared exactly.
 
-- ``analytic``: exact 2-D casting (:func:`mjnav.geometry.raycast.cast_rays_kernel`) against the
+- ``analytic``: exact 2-D casting (:func:`mjnav.geometry.raycast.cast_uniform_rays_kernel`) against the
   wall faces and obstacle edges (``segments``) and the pedestrian circles (``circles``).
 - ``mujoco``: MuJoCo's own ray casting on the compiled scene, evaluated once per call (never
   inside ``mj_step``: the simulation disables sensors while stepping). ``method="multiray"``
@@ -25,7 +25,7 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
-from mjnav.geometry.raycast import beam_angles, cast_rays_kernel
+from mjnav.geometry.raycast import beam_angles, cast_uniform_rays_kernel
 from mjnav.schema import LidarConfig
 
 if TYPE_CHECKING:
@@ -80,7 +80,7 @@ class AnalyticLidar:
             (B,) float64 ranges in [0, max_range], metres.
         """
         del physics
-        return cast_rays_kernel(
+        return cast_uniform_rays_kernel(  # the beams are beam_angles(B): circles culled by angle
             float(origin[0]), float(origin[1]), self._cos, self._sin,
             _NO_SEGMENTS if segments is None else segments, _NO_CIRCLES if circles is None else circles,
             self._max_range,

@@ -7,7 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from mjnav.geometry.raycast import add_noise, beam_angles, cast_rays, polygon_segments, wall_segments
+from mjnav.geometry.raycast import (
+    add_noise,
+    beam_angles,
+    cast_rays,
+    cast_rays_kernel,
+    cast_uniform_rays_kernel,
+    polygon_segments,
+    wall_segments,
+)
 
 NO_SEGMENTS = np.zeros((0, 4))
 NO_CIRCLES = np.zeros((0, 3))
@@ -144,6 +152,27 @@ def test_agrees_with_python_reference_on_random_scenes():
         origin = rng.uniform(-3.0, 3.0, 2)
         ours = cast_rays(origin, angles, segments, circles, 6.0)
         np.testing.assert_allclose(ours, _reference(origin, angles, segments, circles, 6.0), atol=1e-12)
+
+
+@pytest.mark.parametrize("beams", [8, 90, 360, 361, 1000])
+def test_uniform_kernel_reads_exactly_what_the_general_one_reads(beams: int) -> None:
+    """Culling circles by angle changes no reading, bit for bit: circles near, far, tangent to
+    beams, overlapping each other, and containing or touching the origin."""
+    rng = np.random.default_rng(beams)
+    angles = beam_angles(beams)
+    cos_a, sin_a = np.cos(angles), np.sin(angles)
+    segments = wall_segments((20.0, 20.0))
+    for _ in range(40):
+        origin = rng.uniform(-2.0, 2.0, 2)
+        centres = origin + rng.uniform(-9.0, 9.0, (30, 2))
+        radii = rng.uniform(0.05, 1.5, 30)
+        near = origin + np.array([[0.3, 0.0], [0.0, -0.2], [1.0, 1.0]])  # contains / touches / tangent
+        circles = np.vstack([np.column_stack([centres, radii]),
+                             np.column_stack([near, [0.5, 0.2, math.sqrt(0.5)]])])
+        general = cast_rays_kernel(origin[0], origin[1], cos_a, sin_a, segments, circles, 10.0)
+        uniform = cast_uniform_rays_kernel(origin[0], origin[1], cos_a, sin_a, segments, circles, 10.0)
+        np.testing.assert_array_equal(uniform, general)
+        assert (uniform < 10.0).any()
 
 
 def test_rejects_badly_shaped_inputs():
