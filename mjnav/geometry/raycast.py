@@ -98,16 +98,27 @@ def _hit_circles(
     for c in range(circles.shape[0]):
         fx, fy = ox - circles[c, 0], oy - circles[c, 1]
         cc = fx * fx + fy * fy - circles[c, 2] * circles[c, 2]
-        for b in range(dx.shape[0]):
-            half_b = fx * dx[b] + fy * dy[b]
-            disc = half_b * half_b - cc
-            if disc >= 0.0:
-                root = np.sqrt(disc)
-                t = -half_b - root
-                if t < 0.0:
-                    t = -half_b + root  # origin inside: exit point (mj_ray convention)
-                if t >= 0.0 and t < best[b]:
-                    best[b] = t
+        _hit_circle_beams(fx, fy, cc, dx, dy, best, 0, dx.shape[0])
+
+
+@njit(cache=True, fastmath=False)
+def _hit_circle_beams(
+    fx: float, fy: float, cc: float, dx: np.ndarray, dy: np.ndarray, best: np.ndarray, lo: int, hi: int
+) -> None:
+    """Lower ``best[b]``, ``lo <= b < hi``, to the beam's first crossing of one circle.
+
+    ``(fx, fy)`` is the origin minus the centre and ``cc = |f|² - r²``.
+    """
+    for b in range(lo, hi):
+        half_b = fx * dx[b] + fy * dy[b]
+        disc = half_b * half_b - cc
+        if disc >= 0.0:
+            root = np.sqrt(disc)
+            t = -half_b - root
+            if t < 0.0:
+                t = -half_b + root  # origin inside: exit point (mj_ray convention)
+            if t >= 0.0 and t < best[b]:
+                best[b] = t
 
 
 @njit(cache=True, fastmath=False)
@@ -140,25 +151,19 @@ def _hit_circles_uniform(
     for c in range(circles.shape[0]):
         fx, fy = ox - circles[c, 0], oy - circles[c, 1]
         cc = fx * fx + fy * fy - circles[c, 2] * circles[c, 2]
-        first, count = 0, n
-        if cc > 0.0:  # origin outside: only the beams in the circle's angular shadow
-            dist = math.sqrt(fx * fx + fy * fy)
-            half = math.asin(min(circles[c, 2] / dist, 1.0))
-            centre = math.atan2(-fy, -fx)
-            first = math.floor((centre - half) / spacing) - 1  # one beam of margin each side
-            last = math.ceil((centre + half) / spacing) + 1
-            count = min(last - first + 1, n)
-        for k in range(count):
-            b = (first + k) % n
-            half_b = fx * dx[b] + fy * dy[b]
-            disc = half_b * half_b - cc
-            if disc >= 0.0:
-                root = np.sqrt(disc)
-                t = -half_b - root
-                if t < 0.0:
-                    t = -half_b + root  # origin inside: exit point (mj_ray convention)
-                if t >= 0.0 and t < best[b]:
-                    best[b] = t
+        if not cc > 0.0:  # origin inside or on the circle (or NaN): every beam
+            _hit_circle_beams(fx, fy, cc, dx, dy, best, 0, n)
+            continue
+        dist = math.sqrt(fx * fx + fy * fy)  # origin outside: the beams of the angular shadow
+        half = math.asin(min(circles[c, 2] / dist, 1.0))
+        centre = math.atan2(-fy, -fx)
+        first = math.floor((centre - half) / spacing) - 1  # one beam of margin each side
+        last = math.ceil((centre + half) / spacing) + 1
+        start = first % n
+        stop = start + min(last - first + 1, n)
+        _hit_circle_beams(fx, fy, cc, dx, dy, best, start, min(stop, n))
+        if stop > n:  # the shadow wraps past beam B-1 to beam 0
+            _hit_circle_beams(fx, fy, cc, dx, dy, best, 0, stop - n)
 
 
 @njit(cache=True, fastmath=False)
