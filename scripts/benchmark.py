@@ -1,14 +1,21 @@
 """Environment throughput: steps/s for 1 env and the vectorised adapter, with a per-part breakdown.
 
-    python scripts/benchmark.py task=stage7 [steps=2000] [vec_steps=200] [num_envs=16] [task.crowd.count=25]
+    python scripts/benchmark.py task=stage7 [rounds=5] [steps=400] [vec_steps=40] [num_envs=16]
+                                [task.crowd.count=25]
 
-Prints (all from one run, so ratios are comparable on a noisy machine):
+Prints, all from one run:
   * bare MuJoCo ``mj_step`` rate of the same compiled world (reference);
   * one environment through the composer task with random actions: steps/s and µs per part
     (physics = substeps incl. pedestrians and tracking force, lidar, region, action mapping, MPC,
     reward, observation, rest = composer and adapter overhead);
   * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments with 1, 2 and all-core workers
     (this process stepping the first block), and all-core worker processes with this process idle.
+
+This machine's speed drifts by up to 2x within minutes, so every configuration is built first
+and then timed in ``rounds`` rounds: each round runs one block of each configuration (``steps``
+control steps alone, ``vec_steps`` adapter steps of all environments), in alternating order. Each
+row reports the median over rounds and the spread; every row's figure is also given as a ratio to
+the bare physics rate measured in the same rounds, which is what compares across runs.
 """
 
 from __future__ import annotations
@@ -16,6 +23,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -24,46 +32,71 @@ from mjnav.config import load_task
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.schema import ConfigError, split_args
 
-SCRIPT_KEYS = {"task": "stage7", "steps": 2000, "vec_steps": 200, "num_envs": 16, "seed": 0}
+SCRIPT_KEYS = {"task": "stage7", "rounds": 5, "steps": 400, "vec_steps": 40, "num_envs": 16, "seed": 0}
+
+Block = Callable[[], int]
+"""Runs one timed block and returns the number of env steps (or mj_steps) it took."""
 
 
-def bare_physics_rate(env: NavGymEnv, steps: int = 5000) -> float:
-    """mj_step calls per second on the environment's own compiled model (pedestrians frozen)."""
-    model, data = env.physics.model.ptr, env.physics.data.ptr
-    start = time.perf_counter()
-    for _ in range(steps):
-        mujoco.mj_step(model, data)
-    return steps / (time.perf_counter() - start)
+def bare_physics(env: NavGymEnv, steps: int) -> Block:
+    """Blocks of ``steps`` mj_step calls on a copy of the environment's compiled model and data."""
+    model = env.physics.model.ptr
+    data = mujoco.MjData(model)
+    mujoco.mj_copyData(data, model, env.physics.data.ptr)
+
+    def block() -> int:
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+        return steps
+
+    return block
 
 
-def single_env(config, steps: int, seed: int) -> tuple[float, dict[str, float], NavGymEnv]:
-    """Steps/s of one environment with random actions and µs per step of each part."""
-    env = NavGymEnv(config, seed=seed)
-    rng = np.random.default_rng(seed)
-    env.reset(seed=seed)
-    for _ in range(50):  # warm-up: numba dispatch, solver caches
-        if any(env.step(rng.normal(size=4).astype(np.float32))[2:4]):
-            env.reset()
-    task = env.task
-    for timers in (task.timers, task.core.timers):
-        timers.update(dict.fromkeys(timers, 0.0))
-    actions = rng.normal(size=(steps, 4)).astype(np.float32)
-    reset_time, start = 0.0, time.perf_counter()
-    for a in actions:
-        _, _, term, trunc, _ = env.step(a)
-        if term or trunc:
-            t0 = time.perf_counter()
-            env.reset()
-            reset_time += time.perf_counter() - t0
-    total = time.perf_counter() - start
-    parts = {k: 1e6 * v / steps for k, v in {**task.timers, **task.core.timers}.items()}
-    parts["reset (amortised)"] = 1e6 * reset_time / steps
-    parts["rest (composer, adapter)"] = 1e6 * total / steps - sum(parts.values())
-    return steps / total, parts, env
+class SingleEnv:
+    """One environment with random actions; accumulates per-part times over all timed blocks."""
+
+    def __init__(self, config, steps: int, seed: int) -> None:
+        self.env = NavGymEnv(config, seed=seed)
+        self.steps = steps
+        self.rng = np.random.default_rng(seed)
+        self.env.reset(seed=seed)
+        self.reset_time = self.total_time = 0.0
+        self.total_steps = 0
+        self.block()  # warm-up: numba dispatch, solver caches
+        task = self.env.task
+        self._timers = (task.timers, task.core.timers)
+        for timers in self._timers:
+            timers.update(dict.fromkeys(timers, 0.0))
+        self.reset_time = self.total_time = 0.0
+        self.total_steps = 0
+
+    def block(self) -> int:
+        """``steps`` random-action control steps (finished episodes are reset)."""
+        env, reset_time = self.env, 0.0
+        actions = self.rng.normal(size=(self.steps, 4)).astype(np.float32)
+        start = time.perf_counter()
+        for a in actions:
+            _, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                t0 = time.perf_counter()
+                env.reset()
+                reset_time += time.perf_counter() - t0
+        self.total_time += time.perf_counter() - start
+        self.reset_time += reset_time
+        self.total_steps += self.steps
+        return self.steps
+
+    def parts(self) -> dict[str, float]:
+        """µs per step of each part over all timed blocks; ``rest`` is what no timer covers."""
+        n = max(self.total_steps, 1)
+        parts = {k: 1e6 * v / n for timers in self._timers for k, v in timers.items()}
+        parts["reset (amortised)"] = 1e6 * self.reset_time / n
+        parts["rest (composer, adapter)"] = 1e6 * self.total_time / n - sum(parts.values())
+        return parts
 
 
-def vec_rate(config, num_envs: int, workers: int, steps: int, seed: int, step_in_main: bool = True) -> float:
-    """Env steps/s of the rsl-rl adapter with random actions."""
+def vec_env(config, num_envs: int, workers: int, steps: int, seed: int, step_in_main: bool):
+    """The rsl-rl adapter with random actions: a block of ``steps`` steps of all envs, and a closer."""
     import torch
 
     from mjnav.envs.vec_env import NavVecEnv
@@ -72,43 +105,84 @@ def vec_rate(config, num_envs: int, workers: int, steps: int, seed: int, step_in
     torch.set_num_threads(1)
     env = NavVecEnv(TaskEnvFactory(config), num_envs=num_envs, seed=seed, workers=workers,
                     max_episode_length=config.timing.episode_steps, step_in_main=step_in_main)
-    try:
-        gen = torch.Generator().manual_seed(seed)
-        for _ in range(10):
-            env.step(torch.randn(num_envs, 4, generator=gen))
-        start = time.perf_counter()
+    gen = torch.Generator().manual_seed(seed)
+
+    def block() -> int:
         for _ in range(steps):
             env.step(torch.randn(num_envs, 4, generator=gen))
-        return steps * num_envs / (time.perf_counter() - start)
-    finally:
+        return steps * num_envs
+
+    try:
+        block()  # warm-up
+    except BaseException:
         env.close()
+        raise
+    return block, env.close
+
+
+def time_rounds(blocks: dict[str, Block], rounds: int) -> dict[str, np.ndarray]:
+    """Steps/s of every block in each round; the order alternates between rounds."""
+    names = list(blocks)
+    rates: dict[str, list[float]] = {name: [] for name in names}
+    for r in range(rounds):
+        for name in names if r % 2 == 0 else names[::-1]:
+            start = time.perf_counter()
+            steps = blocks[name]()
+            rates[name].append(steps / (time.perf_counter() - start))
+    return {name: np.array(values) for name, values in rates.items()}
+
+
+def adapter_rows(cores: int) -> list[tuple[str, int, bool]]:
+    """(label, workers, step_in_main) of the adapter configurations: 1, 2, all cores, all processes."""
+    rows = [(f"{w} worker{'s' if w > 1 else ''}", w, True) for w in sorted({1, 2, cores})]
+    procs = max(2, cores)
+    return [*rows, (f"{procs} worker processes (this process waits)", procs, False)]
 
 
 def main(argv: list[str]) -> None:
-    """Run the benchmark and print markdown tables."""
+    """Build every configuration, time them in interleaved rounds and print markdown tables."""
     opts, overrides = split_args(argv, SCRIPT_KEYS)
     config = load_task(opts["task"], overrides)
-    rate, parts, env = single_env(config, int(opts["steps"]), int(opts["seed"]))
-    bare = bare_physics_rate(env)
+    seed, num_envs, rounds = int(opts["seed"]), int(opts["num_envs"]), int(opts["rounds"])
+    if rounds < 1:
+        raise ConfigError(f"rounds must be >= 1, got {rounds}")
+    single = SingleEnv(config, int(opts["steps"]), seed)
+    blocks: dict[str, Block] = {"bare": bare_physics(single.env, 5 * int(opts["steps"])), "single": single.block}
+    closers = []
+    try:
+        for label, workers, in_main in adapter_rows(os.cpu_count() or 1):
+            blocks[label], close = vec_env(config, num_envs, workers, int(opts["vec_steps"]), seed, in_main)
+            closers.append(close)
+        rates = time_rounds(blocks, rounds)
+    finally:
+        for close in closers:
+            close()
+        single.env.close()
+    _print(config, rates, single.parts(), num_envs, rounds)
+
+
+def _print(config, rates: dict[str, np.ndarray], parts: dict[str, float], num_envs: int, rounds: int) -> None:
     substeps = config.timing.substeps
+    bare = rates.pop("bare")
+    periods = np.median(bare) / substeps  # control periods/s of bare physics
+    single = rates.pop("single")
+
+    def spread(values: np.ndarray) -> str:
+        return f"{np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f})"
+
     print(f"## {config.name}: {config.crowd.count} pedestrians, {config.obstacles.count} obstacles, "
-          f"LiDAR backend {config.lidar.backend}, MPC solver {config.mpc.solver}\n")
-    print(f"bare mj_step: {bare:,.0f} /s -> {bare / substeps:,.0f} control periods/s ({substeps} substeps)")
-    print(f"one environment (composer task, random actions): {rate:,.0f} steps/s "
-          f"({1e6 / rate:.0f} us/step, {rate / (bare / substeps):.2f} x bare physics)\n")
+          f"LiDAR backend {config.lidar.backend}, MPC solver {config.mpc.solver}; "
+          f"medians of {rounds} interleaved rounds (min-max)\n")
+    print(f"bare mj_step: {spread(bare)} /s -> {periods:,.0f} control periods/s ({substeps} substeps)")
+    print(f"one environment (composer task, random actions): {spread(single)} steps/s "
+          f"({1e6 / np.median(single):.0f} us/step, {np.median(single) / periods:.3f} x bare physics)\n")
     print("| part | us/step | share |\n|---|---|---|")
     total = sum(parts.values())
     for name, us in parts.items():
         print(f"| {name} | {us:.1f} | {us / total:.0%} |")
-    env.close()
-    cores = os.cpu_count() or 1
-    print(f"\n| adapter: {opts['num_envs']} envs | workers | processes started | env steps/s |\n|---|---|---|---|")
-    rows = [(w, True) for w in sorted({1, 2, cores})] + [(max(2, cores), False)]
-    for workers, in_main in rows:
-        r = vec_rate(config, int(opts["num_envs"]), workers, int(opts["vec_steps"]), int(opts["seed"]), in_main)
-        started = workers - 1 if in_main else workers
-        note = "" if in_main else " (this process only waits)"
-        print(f"| NavVecEnv | {workers} | {started}{note} | {r:,.0f} |")
+    print(f"\n| adapter: {num_envs} envs | env steps/s | x bare physics periods |\n|---|---|---|")
+    for label, values in rates.items():
+        print(f"| {label} | {spread(values)} | {np.median(values) / periods:.3f} |")
 
 
 if __name__ == "__main__":
