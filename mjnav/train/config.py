@@ -73,7 +73,8 @@ class CurriculumConfig:
         eval_episodes: Episodes per deterministic evaluation.
         eval_interval: Training iterations between evaluations.
         stage_steps: Per-stage budget in env steps; promote when spent.
-        eval_seed_offset: Added to the run seed for the evaluation environments (held out).
+        eval_seed_offset: Added to the run seed for the evaluation environments (separate from the
+            training environments; not the held-out scenarios of ``scripts/evaluate.py``).
     """
 
     first_stage: int = 1
