@@ -8,7 +8,8 @@ Arguments are ``key=value`` (values parsed as YAML)::
     seed=3                 same as train.seed=3
     resume=RUN_DIR         continue RUN_DIR from its latest checkpoint up to train.iterations
     init=CHECKPOINT        start a new run from a checkpoint's actor and critic weights
-    curriculum=true        walk stage1 -> stage7 (train.curriculum.*)
+    curriculum=true        walk stage1 -> stage7 (train.curriculum.*); without train.iterations= the
+                           cap is every stage's whole budget (:func:`curriculum_iterations`)
     out=runs               parent folder of the run folders
 
 Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
@@ -19,6 +20,7 @@ runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when on
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -42,7 +44,7 @@ from mjnav.train.runner import (
     save_checkpoint,
 )
 
-__all__ = ["RunArgs", "RunPlan", "parse_args", "plan_run", "run"]
+__all__ = ["RunArgs", "RunPlan", "curriculum_iterations", "parse_args", "plan_run", "run"]
 
 _TOP_LEVEL = {"task": str, "seed": int, "resume": str, "init": str, "curriculum": bool, "out": str}
 
@@ -107,6 +109,18 @@ def _task_from_dict(data: dict[str, Any], overrides: list[str]) -> Any:
     return apply_overrides(from_dict(TaskConfig, data), overrides)
 
 
+def curriculum_iterations(train: TrainConfig) -> int:
+    """Iterations that let a curriculum spend every stage's whole budget (the default cap of a walk).
+
+    A curriculum stops at ``train.iterations``; without ``train.iterations=`` on the command line
+    the cap is this, so ``curriculum=true`` walks to ``last_stage`` even if no stage is promoted
+    early (e.g. 7 stages × ceil(3M / 4,096) = 5,131 iterations with the defaults).
+    """
+    cfg = train.curriculum
+    per_stage = math.ceil(cfg.stage_steps / (train.num_envs * train.steps_per_env))
+    return (cfg.last_stage - cfg.first_stage + 1) * per_stage
+
+
 def plan_run(args: RunArgs) -> RunPlan:
     """Resolve configs, run folder and checkpoint of a fresh or resumed run (creates nothing)."""
     if args.resume is not None:
@@ -114,6 +128,8 @@ def plan_run(args: RunArgs) -> RunPlan:
     train = load_train(list(args.train_overrides))
     overrides = list(args.task_overrides)
     if args.curriculum:
+        if not any(o.startswith("iterations=") for o in args.train_overrides):
+            train = apply_overrides(train, [f"iterations={curriculum_iterations(train)}"])
         state = CurriculumState(stage=train.curriculum.first_stage)
         task, label = stages.load_stage(stage_name(state.stage), overrides), "curriculum"
     elif args.task is None:

@@ -242,6 +242,16 @@ def test_override_rejection() -> None:
         session.plan_run(session.parse_args(["task=stage6", "train.policy.widths=1"]))
 
 
+def test_curriculum_cap_defaults_to_every_stage_budget() -> None:
+    """curriculum=true without train.iterations runs long enough to spend all seven budgets."""
+    plan = session.plan_run(session.parse_args(["curriculum=true"]))
+    assert plan.train.iterations == 7 * math.ceil(3_000_000 / 4096) == 5131
+    two = ["curriculum=true", "train.curriculum.first_stage=6", "train.curriculum.stage_steps=4097"]
+    assert session.plan_run(session.parse_args(two)).train.iterations == 2 * 2
+    assert session.plan_run(session.parse_args([*two, "train.iterations=3"])).train.iterations == 3
+    assert session.plan_run(session.parse_args(["task=stage1"])).train.iterations == 1000
+
+
 def test_session_fresh_resume_and_curriculum(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The scripts/train.py session: a fresh run, its resume and a two-stage curriculum export policy.pt."""
     monkeypatch.setattr(curriculum, "load_stage", lambda name, overrides: StubTask(name))
