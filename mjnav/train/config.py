@@ -23,6 +23,7 @@ Override any field from the command line (``train.num_envs=32``, ``train.policy.
 from __future__ import annotations
 
 import dataclasses
+import re
 from typing import Any, Literal
 
 from mjnav.schema import apply_overrides
@@ -90,6 +91,9 @@ class CurriculumConfig:
         _check(0.0 < self.threshold <= 1.0, "threshold", "must be in (0, 1]")
         _check(self.eval_episodes >= 1 and self.eval_interval >= 1, "eval_episodes", "must be >= 1")
         _check(self.stage_steps >= 1, "stage_steps", "must be >= 1")
+
+
+_DEVICE = re.compile(r"cpu|cuda(:\d+)?|mps")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,6 +171,7 @@ class TrainConfig:
         _check(batch % self.minibatches == 0, "minibatches", f"must divide num_envs*steps_per_env ({batch})")
         _check(self.save_interval >= 1, "save_interval", "must be >= 1")
         _check(self.torch_threads >= 0, "torch_threads", "must be >= 0")
+        _check(_DEVICE.fullmatch(self.device) is not None, "device", f"expected cpu, cuda, cuda:N or mps, got {self.device!r}")
 
 
 def load_train(

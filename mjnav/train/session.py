@@ -44,7 +44,7 @@ from mjnav.train.runner import (
     save_checkpoint,
 )
 
-__all__ = ["RunArgs", "RunPlan", "curriculum_iterations", "parse_args", "plan_run", "run"]
+__all__ = ["RunArgs", "RunPlan", "check_device", "curriculum_iterations", "parse_args", "plan_run", "run"]
 
 _TOP_LEVEL = {"task": str, "seed": int, "resume": str, "init": str, "curriculum": bool, "out": str}
 
@@ -161,6 +161,28 @@ def _plan_resume(args: RunArgs) -> RunPlan:
     return RunPlan(run_dir, task, train, overrides, None, found[-1])
 
 
+def check_device(device: str) -> None:
+    """Fail early, before any worker starts, when this torch build cannot use ``device``.
+
+    Raises:
+        ConfigError: CUDA/MPS not available in this torch build, or no such CUDA device index.
+    """
+    import torch
+
+    kind, _, index = device.partition(":")
+    if kind == "cuda":
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0:
+            raise ConfigError(
+                f"train.device={device}: this torch ({torch.__version__}) sees no CUDA device; "
+                "install a CUDA build (make train TORCH=torch) or use train.device=cpu"
+            )
+        if index and int(index) >= count:
+            raise ConfigError(f"train.device={device}: only {count} CUDA device(s) (cuda:0..cuda:{count - 1})")
+    if kind == "mps" and not torch.backends.mps.is_available():
+        raise ConfigError(f"train.device={device}: MPS is not available on this machine; use train.device=cpu")
+
+
 def _write_config(plan: RunPlan, argv: Sequence[str]) -> None:
     plan.run_dir.mkdir(parents=True, exist_ok=True)
     record = {
@@ -185,6 +207,7 @@ def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Pat
         make_env: ``make_env(task, train, seed=None, num_envs=None)`` building the adapter.
     """
     plan = plan_run(parse_args(argv))
+    check_device(plan.train.device)
     _write_config(plan, argv)
     train = plan.train
     env = make_env(plan.task, train)

@@ -242,6 +242,22 @@ def test_override_rejection() -> None:
         session.plan_run(session.parse_args(["task=stage6", "train.policy.widths=1"]))
 
 
+def test_bad_or_unavailable_device_is_a_config_error(tmp_path: Path) -> None:
+    """A misspelt device fails in the config; an unavailable one before any worker starts."""
+    with pytest.raises(ConfigError, match="device"):
+        load_train(["device=gpu"])
+    assert load_train(["device=cuda:1"]).device == "cuda:1"
+    session.check_device("cpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(ConfigError, match="no CUDA device"):
+            session.run(["task=stage1", "train.device=cuda", f"out={tmp_path}"], make_env=_never_called)
+        assert not any(tmp_path.iterdir())  # nothing written, no environment built
+
+
+def _never_called(*args, **kwargs):
+    raise AssertionError("the environment must not be built")
+
+
 def test_curriculum_cap_defaults_to_every_stage_budget() -> None:
     """curriculum=true without train.iterations runs long enough to spend all seven budgets."""
     plan = session.plan_run(session.parse_args(["curriculum=true"]))
