@@ -22,15 +22,22 @@ def _parse(argv: list[str]) -> tuple[dict, list[str]]:
     return {k: v for k, v in opts.items() if v is not None}, overrides
 
 
-def _episode(args: dict[str, str], overrides: list[str]) -> str:
+def _load(args: dict[str, str], overrides: list[str]) -> tuple:
+    """Environment, agent and episode seed (ValueError/FileNotFoundError on bad input)."""
     from mjnav.envs.gym_env import NavGymEnv
-    from mjnav.eval.plots import plot_episode
     from mjnav.eval.policies import load_policy
-    from mjnav.eval.runner import held_out_seed, run_episode
+    from mjnav.eval.runner import held_out_seed
 
     env = NavGymEnv(args.get("task", "stage6"), overrides=overrides or None, seed=0)
     agent = load_policy(args.get("policy", "mpc_goal"))
     seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
+    return env, agent, seed
+
+
+def _episode(env, agent, seed: int, args: dict[str, str]) -> str:
+    from mjnav.eval.plots import plot_episode
+    from mjnav.eval.runner import run_episode
+
     metrics, _, trace = run_episode(env, agent, seed)
     title = f"{env.config.name} · {agent.name} · seed {seed} · {metrics.outcome} in {metrics.time_s:.1f} s"
     out = plot_episode(trace.positions, trace.pedestrians, env.task.layout, env.config.arena.size,
@@ -49,14 +56,23 @@ def main(argv: list[str]) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     if argv[0] == "episode":
-        print(_episode(args, overrides))
+        try:
+            loaded = _load(args, overrides)
+        except (ValueError, FileNotFoundError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        print(_episode(*loaded, args))
         return 0
     from mjnav.eval.plots import plot_learning_curve
 
     if "run" not in args:
         print("error: curve needs run=RUN_DIR", file=sys.stderr)
         return 2
-    print(plot_learning_curve(args["run"], args.get("out", "curve.png"), int(args.get("smooth", 10))))
+    try:
+        print(plot_learning_curve(args["run"], args.get("out", "curve.png"), int(args.get("smooth", 10))))
+    except (ValueError, FileNotFoundError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     return 0
 
 

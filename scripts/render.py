@@ -37,12 +37,16 @@ def main(argv: list[str]) -> int:
     from mjnav.eval.render import RenderConfig, render_episode
     from mjnav.eval.runner import held_out_seed
 
-    env = NavGymEnv(args.get("task", "stage6"), overrides=overrides or None, seed=0)
-    agent = load_policy(args.get("policy", "mpc_goal"))
-    seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
-    frames = int(args["frames"]) if "frames" in args else None
-    config = RenderConfig(args.get("view", "top"), int(args.get("width", 480)), int(args.get("height", 480)),
-                          frames, str(args.get("rays", False)).lower() in ("1", "true", "yes"))
+    try:  # bad task, override, policy or value: one line, before anything is rendered
+        env = NavGymEnv(args.get("task", "stage6"), overrides=overrides or None, seed=0)
+        agent = load_policy(args.get("policy", "mpc_goal"))
+        seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
+        frames = int(args["frames"]) if "frames" in args else None
+        config = RenderConfig(args.get("view", "top"), int(args.get("width", 480)), int(args.get("height", 480)),
+                              frames, str(args.get("rays", False)).lower() in ("1", "true", "yes"))
+    except (ValueError, FileNotFoundError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     result = render_episode(env, agent, seed, args.get("out", "episode.mp4"), config)
     print(f"{result['path']}: {result['frames']} frames, outcome {result['outcome']} ({result['backend']})")
     return 0

@@ -19,8 +19,10 @@ network's mean (the environment applies the sigmoid). Every loaded policy is an 
 
 from __future__ import annotations
 
+import pickle
 import re
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -216,11 +218,20 @@ def _load_learned(path: Path) -> Agent:
     import torch
 
     name = _display_name(path)
-    if re.fullmatch(r"model_\d+\.pt", path.name):
-        state = torch.load(str(path), map_location="cpu", weights_only=False)
-        module = build_actor(state["actor_state_dict"], _activations(path))
-    else:
-        module = torch.jit.load(str(path), map_location="cpu")
+    try:
+        if re.fullmatch(r"model_\d+\.pt", path.name):
+            state = torch.load(str(path), map_location="cpu", weights_only=False)
+            module = build_actor(state["actor_state_dict"], _activations(path))
+        else:
+            with warnings.catch_warnings():  # TorchScript is deprecated, still the portable format
+                warnings.simplefilter("ignore", DeprecationWarning)
+                module = torch.jit.load(str(path), map_location="cpu")
+    except (RuntimeError, KeyError, TypeError, AttributeError, pickle.UnpicklingError) as err:
+        reason = str(err).strip().split(". ")[0].splitlines()[0] if str(err).strip() else "no detail"
+        raise ValueError(
+            f"policy {str(path)!r}: not a loadable TorchScript policy.pt or rsl-rl model_<it>.pt "
+            f"({type(err).__name__}: {reason})"
+        ) from err
     return Agent(name, "learned", str(path), actor=_torch_actor(module))
 
 
@@ -235,7 +246,8 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs") -> Agent:
         The :class:`Agent`.
 
     Raises:
-        FileNotFoundError: Neither a baseline nor a loadable file/run.
+        FileNotFoundError: Neither a baseline nor an existing file/run.
+        ValueError: The file is not a TorchScript policy or an rsl-rl checkpoint of a known actor.
     """
     text = str(spec)
     if text == "random":

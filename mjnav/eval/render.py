@@ -56,6 +56,15 @@ class RenderConfig:
     max_frames: int | None = None
     rays: bool = False
 
+    def __post_init__(self) -> None:
+        """Raises ValueError on an unknown view or a size MuJoCo's default offscreen buffer cannot hold."""
+        if self.view not in ("top", "track", "both"):
+            raise ValueError(f"view: expected top, track or both, got {self.view!r}")
+        if not (1 <= self.width <= 640 and 1 <= self.height <= 480):
+            raise ValueError(f"width x height: must be within 640 x 480 pixels, got {self.width} x {self.height}")
+        if self.max_frames is not None and self.max_frames < 1:
+            raise ValueError(f"frames: must be >= 1, got {self.max_frames}")
+
 
 class OffscreenView:
     """An off-screen MuJoCo render target with its own GL context."""

@@ -34,10 +34,12 @@ from mjnav.eval.metrics import (
     summary_row,
     write_csv,
 )
+from mjnav.schema import ConfigError
 
 __all__ = [
     "HELD_OUT_BASE",
     "EpisodeTrace",
+    "EvalError",
     "EvalSpec",
     "evaluate",
     "evaluate_tasks",
@@ -55,6 +57,10 @@ if TYPE_CHECKING:
 HELD_OUT_BASE = 2**32
 #: Seed of the untimed warm-up steps of each worker (neither a training nor a held-out seed).
 WARM_UP_SEED = HELD_OUT_BASE - 1
+
+
+class EvalError(RuntimeError):
+    """An evaluation worker could not build its environment or load its policy (message says why)."""
 
 
 def held_out_seed(index: int, seed_offset: int = 0) -> int:
@@ -212,6 +218,19 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(spec: EvalSpec) -> None:
+    """Pool initializer: a failure is kept and raised by the first task.
+
+    An exception escaping a ``multiprocessing.Pool`` initializer makes the pool start a new worker,
+    which fails again, forever: the evaluation would hang instead of reporting the error.
+    """
+    _WORKER.clear()
+    try:
+        _setup_worker(spec)
+    except Exception as err:  # noqa: BLE001 - reported to the parent by _work
+        _WORKER["error"] = f"{type(err).__name__}: {err}"
+
+
+def _setup_worker(spec: EvalSpec) -> None:
     from mjnav.envs.gym_env import NavGymEnv
     from mjnav.eval.policies import load_policy
 
@@ -238,6 +257,8 @@ def _warm_up(env: NavGymEnv, agent: Agent, steps: int = 3) -> None:
 
 
 def _work(index: int) -> dict[str, Any]:
+    if "error" in _WORKER:
+        raise EvalError(f"evaluation worker setup failed: {_WORKER['error']}")
     env, agent, spec = _WORKER["env"], _WORKER["agent"], _WORKER["spec"]
     seed = held_out_seed(index, spec.seed_offset)
     metrics, extras, _ = run_episode(env, agent, seed)
@@ -250,6 +271,12 @@ def _results(spec: EvalSpec) -> Iterator[dict[str, Any]]:
         _init_worker(spec)
         yield from map(_work, indices)
         return
+    from mjnav.eval.policies import load_policy
+
+    try:  # a bad policy fails here, in seconds, before any worker starts
+        load_policy(spec.policy)
+    except ValueError as err:
+        raise EvalError(str(err)) from err
     ctx = mp.get_context("spawn")
     with ctx.Pool(spec.workers, initializer=_init_worker, initargs=(spec,)) as pool:
         chunk = max(1, min(8, spec.episodes // (4 * spec.workers)))
@@ -341,12 +368,23 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     if "policy" not in args:
         raise ValueError(f"policy= is required\n{_USAGE}")
     tasks = args.get("tasks", args.get("task", "stage6")).split(",")
-    workers = int(args.get("workers", os.cpu_count() or 1))
-    episodes, offset = int(args.get("episodes", 1000)), int(args.get("seed_offset", 0))
+    workers = _integer(args, "workers", os.cpu_count() or 1, minimum=0)
+    episodes = _integer(args, "episodes", 1000, minimum=1)
+    offset = _integer(args, "seed_offset", 0, minimum=0)
     specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers)
              for t in tasks if t.strip()]
     out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
     return specs, out
+
+
+def _integer(args: dict[str, str], key: str, default: int, minimum: int) -> int:
+    try:
+        value = int(args.get(key, default))
+    except ValueError:
+        raise ValueError(f"{key}: expected an integer, got {args[key]!r}") from None
+    if value < minimum:
+        raise ValueError(f"{key}: must be >= {minimum}, got {value}")
+    return value
 
 
 def main(argv: Sequence[str]) -> int:
@@ -356,7 +394,11 @@ def main(argv: Sequence[str]) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    rows = evaluate_tasks(specs, out)
+    try:
+        rows = evaluate_tasks(specs, out)
+    except (ConfigError, FileNotFoundError, EvalError) as err:  # bad task, override or policy
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     print(format_markdown(rows), end="")
     print(f"wrote {out}/summary.csv, {out}/summary.md and one JSONL per task")
     return 0

@@ -8,7 +8,7 @@ import pytest
 from mjnav.eval.gl import probe_gl_backend
 
 BACKEND = next((b for b in ("egl", "osmesa") if probe_gl_backend(b)), None)
-pytestmark = pytest.mark.skipif(
+needs_gl = pytest.mark.skipif(
     BACKEND is None, reason="no off-screen GL backend (needs libegl1 + libgl1-mesa-dri, or libosmesa6)"
 )
 
@@ -29,6 +29,7 @@ def _read_video(path) -> tuple[np.ndarray, float]:
         return np.stack([np.frombuffer(f, np.uint8).reshape(h, w, 3) for f in reader]), float(meta["fps"])
 
 
+@needs_gl
 def test_ten_frame_render(tmp_path):
     """view=both at 160×128 per view: 10 frames of 128×320 at 10 fps, with visible content."""
     from mjnav.envs.gym_env import NavGymEnv
@@ -45,3 +46,16 @@ def test_ten_frame_render(tmp_path):
     assert fps == pytest.approx(10.0)
     assert frames.std() > 5.0  # not a blank image
     env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [({"view": "sideways"}, "view"), ({"width": 0}, "640 x 480"), ({"height": 481}, "640 x 480"),
+     ({"max_frames": 0}, "frames")],
+)
+def test_render_config_rejects_bad_values(kwargs, match):
+    """Bad views, sizes and frame counts fail when the config is made, before any GL context."""
+    from mjnav.eval.render import RenderConfig
+
+    with pytest.raises(ValueError, match=match):
+        RenderConfig(**kwargs)

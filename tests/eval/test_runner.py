@@ -8,7 +8,17 @@ import json
 import numpy as np
 import pytest
 
-from mjnav.eval.runner import HELD_OUT_BASE, EvalSpec, evaluate_tasks, held_out_seed, parse_args, run_episode
+from mjnav.eval.runner import (
+    HELD_OUT_BASE,
+    EvalError,
+    EvalSpec,
+    _results,
+    evaluate_tasks,
+    held_out_seed,
+    main,
+    parse_args,
+    run_episode,
+)
 
 OVERRIDES = ("timing.episode_steps=20",)
 
@@ -77,3 +87,31 @@ def test_parse_args_multi_task():
     assert out.name == "teb"
     with pytest.raises(ValueError):
         parse_args(["task=stage5"])
+    with pytest.raises(ValueError, match="episodes: must be >= 1"):
+        parse_args(["task=stage5", "policy=teb", "episodes=0"])
+    with pytest.raises(ValueError, match="workers: expected an integer"):
+        parse_args(["task=stage5", "policy=teb", "workers=two"])
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_unloadable_policy_is_one_error_line_not_a_hang(tmp_path, capsys, workers):
+    """A file that is no policy fails before any episode, in one line (a Pool used to respawn forever)."""
+    bogus = tmp_path / "policy.pt"
+    bogus.write_text("not a torch file")
+    argv = ["task=stage5", f"policy={bogus}", "episodes=2", f"workers={workers}", f"out={tmp_path / 'out'}"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "not a loadable TorchScript policy.pt" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_worker_setup_failure_reaches_the_parent(tmp_path):
+    """A worker whose setup fails reports the error through its first task instead of being respawned."""
+    spec = EvalSpec("stage5", "mpc_goal", 2, 0, ("crowd.bogus=1",), 2)
+    with pytest.raises(EvalError, match="crowd.bogus"):
+        list(_results(spec))
+
+
+def test_bad_task_is_one_error_line(capsys):
+    assert main(["task=stage9", "policy=mpc_goal", "episodes=1", "workers=1"]) == 2
+    assert capsys.readouterr().err.startswith("error: unknown task 'stage9'")
