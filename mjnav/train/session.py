@@ -138,14 +138,35 @@ def plan_run(args: RunArgs) -> RunPlan:
         state, task = None, stages.load_stage(args.task, overrides)
         label = task.name
     run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
-    init = Path(args.init) if args.init else None
+    init = _check_init(Path(args.init)) if args.init else None
     return RunPlan(run_dir, task, train, overrides, state, init=init)
+
+
+def _check_init(path: Path) -> Path:
+    """``init=``: an rsl-rl checkpoint with actor and critic weights (checked before anything starts)."""
+    import torch
+
+    if not path.is_file():
+        raise ConfigError(f"init: no such checkpoint file {str(path)!r} (expected runs/<run>/model_<it>.pt)")
+    try:
+        state = torch.load(str(path), map_location="cpu", weights_only=False)
+    except Exception as err:  # any unreadable file is the same user error
+        raise ConfigError(f"init: {str(path)!r} is not an rsl-rl checkpoint ({type(err).__name__})") from err
+    missing = [k for k in ("actor_state_dict", "critic_state_dict") if not isinstance(state, dict) or k not in state]
+    if missing:
+        raise ConfigError(
+            f"init: {str(path)!r} has no {' or '.join(missing)}; init= takes a model_<it>.pt checkpoint "
+            "(an exported policy.pt has no critic)"
+        )
+    return path
 
 
 def _plan_resume(args: RunArgs) -> RunPlan:
     if args.init is not None:
         raise ConfigError("init: cannot be combined with resume")
     run_dir = Path(args.resume)  # type: ignore[arg-type]
+    if not (run_dir / "config.yaml").is_file():
+        raise ConfigError(f"resume: {str(run_dir)!r} is not a run folder (no config.yaml)")
     saved = yaml.safe_load((run_dir / "config.yaml").read_text())
     train = load_train(list(args.train_overrides), base=from_dict(TrainConfig, saved["train"]))
     overrides = list(saved["run"]["task_overrides"]) + list(args.task_overrides)

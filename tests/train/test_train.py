@@ -258,6 +258,25 @@ def _never_called(*args, **kwargs):
     raise AssertionError("the environment must not be built")
 
 
+def test_bad_resume_or_init_fails_before_anything_starts(tmp_path: Path) -> None:
+    """resume= of a non-run folder and init= of a missing, foreign or actor-only file are ConfigErrors."""
+    with pytest.raises(ConfigError, match="not a run folder"):
+        session.plan_run(session.parse_args([f"resume={tmp_path}"]))
+    with pytest.raises(ConfigError, match="no such checkpoint"):
+        session.plan_run(session.parse_args(["task=stage1", f"init={tmp_path / 'model_9.pt'}"]))
+    text = tmp_path / "notes.txt"
+    text.write_text("# not a checkpoint")
+    with pytest.raises(ConfigError, match="not an rsl-rl checkpoint"):
+        session.plan_run(session.parse_args(["task=stage1", f"init={text}"]))
+    actor_only = tmp_path / "model_1.pt"
+    torch.save({"actor_state_dict": {}}, actor_only)
+    with pytest.raises(ConfigError, match="critic_state_dict"):
+        session.plan_run(session.parse_args(["task=stage1", f"init={actor_only}"]))
+    both = tmp_path / "model_2.pt"
+    torch.save({"actor_state_dict": {}, "critic_state_dict": {}}, both)
+    assert session.plan_run(session.parse_args(["task=stage1", f"init={both}"])).init == both
+
+
 def test_curriculum_cap_defaults_to_every_stage_budget() -> None:
     """curriculum=true without train.iterations runs long enough to spend all seven budgets."""
     plan = session.plan_run(session.parse_args(["curriculum=true"]))
