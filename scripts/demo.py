@@ -24,6 +24,8 @@ DEFAULTS = {"task": "stage6", "seed": 7, "out": "out/demo"}
 def main(argv: list[str]) -> None:
     """Run the demo episode and export its world."""
     opts, overrides = split_args(argv, DEFAULTS)
+    if not isinstance(opts["seed"], int) or isinstance(opts["seed"], bool):
+        raise ConfigError(f"seed: expected an integer episode seed, got {opts['seed']!r}")
     t0 = time.perf_counter()
     env = NavGymEnv(opts["task"], overrides=overrides, seed=0)
     build = time.perf_counter() - t0
