@@ -120,8 +120,10 @@ class NavGymEnv(gym.Env):
         return self._env.physics.render(height=480, width=480, camera_id=0)
 
     def close(self) -> None:
-        """Free the physics."""
-        self._env.close()
+        """Free the physics; closing again does nothing (Gymnasium's contract)."""
+        if not getattr(self, "_closed", False):
+            self._closed = True
+            self._env.close()
 
 
 def make_gym_env(config: TaskConfig | str, seed: int | None = None, **kwargs: Any) -> NavGymEnv:

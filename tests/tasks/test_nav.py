@@ -121,6 +121,14 @@ def test_gymnasium_checker(env_id: str) -> None:
     env.close()
 
 
+def test_close_twice_is_allowed() -> None:
+    """Gymnasium requires close() to be idempotent (its checker warns otherwise)."""
+    env = NavGymEnv("stage1", seed=0)
+    env.reset(seed=0)
+    env.close()
+    env.close()
+
+
 def test_outcome_flags() -> None:
     """Only success and collision are terminal; timeout ends the episode as truncation."""
     assert Outcome.SUCCESS.terminal and Outcome.COLLISION.terminal
