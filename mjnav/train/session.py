@@ -205,14 +205,20 @@ def check_device(device: str) -> None:
 
 
 def _write_config(plan: RunPlan, argv: Sequence[str]) -> None:
+    """Write ``config.yaml``; a resume keeps the run's first ``init`` and ``argv`` and lists its own."""
     plan.run_dir.mkdir(parents=True, exist_ok=True)
+    path = plan.run_dir / "config.yaml"
+    first = {"init": str(plan.init) if plan.init else None, "argv": list(argv), "resumes": []}
+    if plan.checkpoint is not None and path.is_file():
+        saved = yaml.safe_load(path.read_text())["run"]
+        first = {"init": saved.get("init"), "argv": saved.get("argv", []),
+                 "resumes": [*saved.get("resumes", []), list(argv)]}
     record = {
         "run": {
             "task": plan.task.name,
             "task_overrides": plan.task_overrides,
             "curriculum": plan.curriculum is not None,
-            "init": str(plan.init) if plan.init else None,
-            "argv": list(argv),
+            **first,
         },
         "task": to_dict(plan.task),
         "train": to_dict(plan.train),

@@ -299,6 +299,8 @@ def test_session_fresh_resume_and_curriculum(tmp_path: Path, monkeypatch: pytest
     saved = yaml.safe_load((run_dir / "config.yaml").read_text())
     assert saved["train"]["num_envs"] == 4 and saved["task"] == {"name": "fake"}
     session.run([f"resume={run_dir}", "train.iterations=3"], make_env=make_fake_env)
+    run = yaml.safe_load((run_dir / "config.yaml").read_text())["run"]
+    assert run["argv"][0] == "task=fake" and run["resumes"] == [[f"resume={run_dir}", "train.iterations=3"]]
     assert checkpoints(run_dir)[-1].name == "model_2.pt"
     plan = [
         "curriculum=true",
