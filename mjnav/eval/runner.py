@@ -226,7 +226,7 @@ def _init_worker(spec: EvalSpec) -> None:
     _WORKER.clear()
     try:
         _setup_worker(spec)
-    except Exception as err:  # reported to the parent by _work
+    except Exception as err:  # noqa: BLE001 - reported to the parent by _work
         _WORKER["error"] = f"{type(err).__name__}: {err}"
 
 

@@ -171,7 +171,8 @@ class TrainConfig:
         _check(batch % self.minibatches == 0, "minibatches", f"must divide num_envs*steps_per_env ({batch})")
         _check(self.save_interval >= 1, "save_interval", "must be >= 1")
         _check(self.torch_threads >= 0, "torch_threads", "must be >= 0")
-        _check(_DEVICE.fullmatch(self.device) is not None, "device", f"expected cpu, cuda, cuda:N or mps, got {self.device!r}")
+        device_ok = _DEVICE.fullmatch(self.device) is not None
+        _check(device_ok, "device", f"expected cpu, cuda, cuda:N or mps, got {self.device!r}")
 
 
 def load_train(

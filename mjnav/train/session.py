@@ -152,7 +152,8 @@ def _check_init(path: Path) -> Path:
         state = torch.load(str(path), map_location="cpu", weights_only=False)
     except Exception as err:  # any unreadable file is the same user error
         raise ConfigError(f"init: {str(path)!r} is not an rsl-rl checkpoint ({type(err).__name__})") from err
-    missing = [k for k in ("actor_state_dict", "critic_state_dict") if not isinstance(state, dict) or k not in state]
+    keys = state.keys() if isinstance(state, dict) else ()
+    missing = [k for k in ("actor_state_dict", "critic_state_dict") if k not in keys]
     if missing:
         raise ConfigError(
             f"init: {str(path)!r} has no {' or '.join(missing)}; init= takes a model_<it>.pt checkpoint "
