@@ -23,7 +23,6 @@ from __future__ import annotations
 import os
 import sys
 import time
-from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -31,12 +30,9 @@ import numpy as np
 from mjnav.config import load_task
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.schema import ConfigError, split_args
+from mjnav.timing import Block, time_rounds
 
 SCRIPT_KEYS = {"task": "stage7", "rounds": 5, "steps": 400, "vec_steps": 40, "num_envs": 16, "seed": 0}
-
-Block = Callable[[], int]
-"""Runs one timed block and returns the number of env steps (or mj_steps) it took."""
-
 
 def bare_physics(env: NavGymEnv, steps: int) -> Block:
     """Blocks of ``steps`` mj_step calls on a copy of the environment's compiled model and data."""
@@ -118,18 +114,6 @@ def vec_env(config, num_envs: int, workers: int, steps: int, seed: int, step_in_
         env.close()
         raise
     return block, env.close
-
-
-def time_rounds(blocks: dict[str, Block], rounds: int) -> dict[str, np.ndarray]:
-    """Steps/s of every block in each round; the order alternates between rounds."""
-    names = list(blocks)
-    rates: dict[str, list[float]] = {name: [] for name in names}
-    for r in range(rounds):
-        for name in names if r % 2 == 0 else names[::-1]:
-            start = time.perf_counter()
-            steps = blocks[name]()
-            rates[name].append(steps / (time.perf_counter() - start))
-    return {name: np.array(values) for name, values in rates.items()}
 
 
 def adapter_rows(cores: int) -> list[tuple[str, int, bool]]:

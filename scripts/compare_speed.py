@@ -21,13 +21,13 @@ import subprocess
 import sys
 import tarfile
 import tempfile
-import time
 from io import BytesIO
 from pathlib import Path
 
 import numpy as np
 
 from mjnav.schema import ConfigError, split_args
+from mjnav.timing import Block, time_rounds
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT_KEYS = {
@@ -100,18 +100,11 @@ def _adapter(package: str, config_args: tuple[str, list[str]], seed: int, block_
     return block, env.close
 
 
-def compare(blocks: dict, repeats: int) -> dict[str, list[float]]:
-    """Steps/s of each version per repetition, alternating the order."""
-    names = list(blocks)
-    for name in names:
-        blocks[name]()  # warm-up: numba caches, solver set-up
-    rates: dict[str, list[float]] = {name: [] for name in names}
-    for rep in range(repeats):
-        for name in names if rep % 2 == 0 else names[::-1]:
-            start = time.perf_counter()
-            steps = blocks[name]()
-            rates[name].append(steps / (time.perf_counter() - start))
-    return rates
+def compare(blocks: dict[str, Block], repeats: int) -> dict[str, np.ndarray]:
+    """Steps/s of each version per repetition, alternating the order (after one warm-up block each)."""
+    for block in blocks.values():
+        block()  # warm-up: numba caches, solver set-up
+    return time_rounds(blocks, repeats)
 
 
 def main(argv: list[str]) -> None:
@@ -135,7 +128,7 @@ def main(argv: list[str]) -> None:
         finally:
             for close in closers:
                 close()
-    ratio = np.array(rates["new"]) / np.array(rates["ref"])
+    ratio = rates["new"] / rates["ref"]
     what = f"adapter, {opts['num_envs']} envs, all cores" if opts["adapter"] else "one environment"
     print(
         f"{opts['task']}, {what}: {ref} median {np.median(rates['ref']):,.0f} steps/s, "

@@ -1,36 +1,13 @@
 """scripts/benchmark.py: interleaved rounds and the per-part breakdown."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
 from mjnav.config import load_task
-
-ROOT = Path(__file__).resolve().parents[1]
+from tests._scripts import load_script
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("benchmark", ROOT / "scripts" / "benchmark.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_rounds_alternate_the_order_and_time_every_block() -> None:
-    calls = []
-
-    def make(name: str, steps: int):
-        def block() -> int:
-            calls.append(name)
-            return steps
-
-        return block
-
-    rates = _script().time_rounds({"a": make("a", 10), "b": make("b", 20)}, rounds=3)
-    assert calls == ["a", "b", "b", "a", "a", "b"]
-    assert set(rates) == {"a", "b"} and all(len(v) == 3 and (v > 0).all() for v in rates.values())
-    assert np.median(rates["b"]) > 0
+    return load_script("benchmark")
 
 
 def test_adapter_rows_cover_one_two_and_all_cores() -> None:

@@ -1,21 +1,17 @@
 """scripts/compare_speed.py exports another revision as a separate, importable package."""
 
 import importlib
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests._scripts import ROOT, load_script
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("compare_speed", ROOT / "scripts" / "compare_speed.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("compare_speed")
 
 
 @pytest.fixture()
