@@ -21,6 +21,10 @@ Everything here is in the robot frame (metres, radians, SI).
 Failed region (``region.success`` False): the action polygon is the fallback star polygon (every
 6th beam's shrunk point, not convex). Rays are then cast against that closed polyline (first
 crossing) and the goal test is an even-odd point-in-polygon test on it.
+
+:func:`map_action` runs as one numba kernel (the per-step Python glue had cost more than the
+geometry); :func:`boundary_distance`, :func:`goal_inside` and :func:`radii` are the same rules as
+plain functions, and the tests hold the kernel to them.
 """
 
 from __future__ import annotations
@@ -30,11 +34,12 @@ import math
 from typing import Literal
 
 import numpy as np
+from numba import njit
 
 from mjnav.geometry.polygon import (
+    _ray_polyline,
     point_in_halfplanes,
     points_in_polygon,
-    ray_circle_distance,
     ray_convex_distance,
     ray_polyline_distance,
 )
@@ -167,21 +172,43 @@ def map_action(
         ValueError: On badly shaped or non-finite inputs, or an action outside [0, 1].
     """
     cfg = config if config is not None else _DEFAULT
-    a_s, b_s, a_l, b_l, vx, vy, ax, ay, gx, gy = _validate(action01, velocity, acceleration, goal_rel)
-    r_s, r_l = _radii(vx, vy, ax, ay, cfg)
-    theta_s = TWO_PI * a_s + (math.atan2(vy, vx) if cfg.heading == "velocity" else 0.0)
-    dir_s = np.array([math.cos(theta_s), math.sin(theta_s)])
-    d_s = min(boundary_distance(region, _ORIGIN, dir_s), r_s)
-    q_s = (b_s * d_s) * dir_s
+    values = _validate(action01, velocity, acceleration, goal_rel)
+    out = _map_kernel(
+        *values, region.success, region.normals, region.offsets, region.boundary_xy,
+        cfg.heading == "velocity", cfg.long_circle == "code", cfg.jerk_max * math.sqrt(2.0), cfg.t_c,
+        cfg.long_time, cfg.short_scale, cfg.long_min_radius,
+    )  # fmt: skip
+    q_s, q_l = np.array(out[0:2]), np.array(out[2:4])
+    inside = bool(out[10])
+    goal = np.array(values[8:10])
+    return ActionPoints(q_s, q_l, goal if inside else q_l, out[4], out[5], out[6], out[7], out[8], out[9], inside)
+
+
+@njit(cache=True)
+def _map_kernel(
+    a_s: float, b_s: float, a_l: float, b_l: float, vx: float, vy: float, ax: float, ay: float,
+    gx: float, gy: float, convex: bool, normals: np.ndarray, offsets: np.ndarray, star: np.ndarray,
+    heading_velocity: bool, code_circle: bool, jerk: float, t_c: float, long_time: float,
+    short_scale: float, long_min_radius: float,
+) -> tuple:  # pragma: no cover - numba; fmt: skip
+    """:func:`map_action` on floats: (qsx, qsy, qlx, qly, θ_s, θ_l, d_s, d_l, R_s, R_l, inside)."""
+    r_s = short_scale * _reach_max(vx, vy, ax, ay, t_c, jerk)
+    r_l = _reach_max(vx, vy, ax, ay, long_time, jerk)
+    if code_circle:
+        r_l = max(long_min_radius, r_l)
+    theta_s = TWO_PI * a_s + (math.atan2(vy, vx) if heading_velocity else 0.0)
+    cs, ss = math.cos(theta_s), math.sin(theta_s)
+    d_s = min(_boundary(convex, normals, offsets, star, 0.0, 0.0, cs, ss), r_s)
+    qsx, qsy = (b_s * d_s) * cs, (b_s * d_s) * ss
     theta_l = theta_s + TWO_PI * a_l
-    dir_l = np.array([math.cos(theta_l), math.sin(theta_l)])
-    d_l = min(boundary_distance(region, q_s, dir_l), ray_circle_distance(q_s, dir_l, r_l))
-    q_l = q_s + (b_l * d_l) * dir_l
-    goal = np.array([gx, gy])
-    inside = goal_inside(region, goal)
-    return ActionPoints(
-        q_s, q_l, goal if inside else q_l, _wrap(theta_s), _wrap(theta_l), d_s, d_l, r_s, r_l, inside
-    )
+    cl, sl = math.cos(theta_l), math.sin(theta_l)
+    d_l = min(_boundary(convex, normals, offsets, star, qsx, qsy, cl, sl), _ray_circle(qsx, qsy, cl, sl, r_l))
+    qlx, qly = qsx + (b_l * d_l) * cl, qsy + (b_l * d_l) * sl
+    if convex:
+        inside = _in_halfplanes(gx, gy, normals, offsets)
+    else:
+        inside = _in_star(gx, gy, star)
+    return qsx, qsy, qlx, qly, _wrap(theta_s), _wrap(theta_l), d_s, d_l, r_s, r_l, inside
 
 
 def radii(velocity: np.ndarray, acceleration: np.ndarray, config: ActionConfig) -> tuple[float, float]:
@@ -201,9 +228,73 @@ _DEFAULT = ActionConfig()
 _ORIGIN = np.zeros(2)
 
 
+@njit(cache=True)
 def _wrap(angle: float) -> float:
     """Wrap an angle to [-π, π)."""
     return (angle + math.pi) % TWO_PI - math.pi
+
+
+@njit(cache=True)
+def _reach_max(vx: float, vy: float, ax: float, ay: float, t: float, jerk: float) -> float:  # pragma: no cover
+    """Largest travel of :func:`_reaches` at one time (same directions and arithmetic)."""
+    th_v, th_a = math.atan2(vy, vx), math.atan2(ay, ax)
+    th_b = th_v + _wrap(th_a - th_v) / 2.0
+    bx, by, jt = vx * t + ax * t * t / 2.0, vy * t + ay * t * t / 2.0, jerk * t**3 / 6.0
+    best = -1.0
+    for th, sign in ((th_v, 1.0), (th_a, 1.0), (th_b, 1.0), (th_b, -1.0)):
+        c, s = sign * math.cos(th), sign * math.sin(th)
+        best = max(best, math.hypot(bx + jt * c, by + jt * s))
+    return best
+
+
+@njit(cache=True)
+def _boundary(
+    convex: bool, normals: np.ndarray, offsets: np.ndarray, star: np.ndarray, ox: float, oy: float,
+    dx: float, dy: float,
+) -> float:  # pragma: no cover - numba; fmt: skip
+    """:func:`boundary_distance` on floats."""
+    if convex:
+        best = math.inf
+        for j in range(normals.shape[0]):
+            facing = normals[j, 0] * dx + normals[j, 1] * dy
+            if facing > 1e-15:
+                best = min(best, (offsets[j] - normals[j, 0] * ox - normals[j, 1] * oy) / facing)
+        return max(0.0, best)
+    origin, direction = np.array((ox, oy)), np.array((dx, dy))
+    hit = _ray_polyline(origin, direction, star)
+    return 0.0 if math.isinf(hit) else hit
+
+
+@njit(cache=True)
+def _ray_circle(ox: float, oy: float, dx: float, dy: float, radius: float) -> float:  # pragma: no cover
+    """:func:`~mjnav.geometry.polygon.ray_circle_distance` on floats."""
+    b = ox * dx + oy * dy
+    c = ox * ox + oy * oy - radius * radius
+    if c >= 0.0:
+        return 0.0
+    return -b + math.sqrt(b * b - c)
+
+
+@njit(cache=True)
+def _in_halfplanes(x: float, y: float, normals: np.ndarray, offsets: np.ndarray) -> bool:  # pragma: no cover
+    """:func:`~mjnav.geometry.polygon.point_in_halfplanes` (tol 0) on floats."""
+    for j in range(normals.shape[0]):
+        if normals[j, 0] * x + normals[j, 1] * y > offsets[j]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _in_star(x: float, y: float, vertices: np.ndarray) -> bool:  # pragma: no cover
+    """:func:`~mjnav.geometry.polygon.points_in_polygon` (even-odd) for one point."""
+    k, crossings = vertices.shape[0], 0
+    for i in range(k):
+        j = (i + 1) % k
+        ay, by = vertices[i, 1], vertices[j, 1]
+        if (ay > y) != (by > y):
+            x_cross = vertices[i, 0] + (y - ay) * (vertices[j, 0] - vertices[i, 0]) / (by - ay)
+            crossings += x < x_cross
+    return crossings % 2 == 1
 
 
 def _validate(

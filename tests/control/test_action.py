@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import shapely
 
-from mjnav.control.action import ActionConfig, map_action, radii, reach_distance
+from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, map_action, radii, reach_distance
 from mjnav.geometry.polygon import points_in_convex, points_in_polygon
 from mjnav.geometry.region import compute_region
 from tests.geometry.scans import ANGLES, random_scan
@@ -139,6 +139,30 @@ def test_failed_region_uses_the_star_polyline():
         for q in (pts.q_s, pts.q_l):
             assert star.buffer(1e-9).contains(shapely.Point(q))
     assert pts.goal_inside == bool(points_in_polygon(np.array([1.0, 1.0]), region.boundary_xy))
+
+
+def test_jitted_mapping_agrees_with_the_public_geometry():
+    """map_action's kernel gives what radii, boundary_distance and goal_inside give, on both region kinds."""
+    rng = np.random.default_rng(3)
+    kinds = set()
+    for k in range(300):
+        ranges = random_scan(rng)
+        if k % 3 == 0:
+            ranges[rng.integers(0, 360)] = 0.05  # touching: the fallback star polyline
+        region = compute_region(ranges, ANGLES)
+        kinds.add(region.success)
+        cfg = ActionConfig(heading="absolute" if k % 2 else "velocity", long_circle="paper" if k % 4 < 2 else "code")
+        act, v, a = rng.uniform(0, 1, 4), rng.uniform(-2.5, 2.5, 2), rng.uniform(-4, 4, 2)
+        goal = rng.uniform(-6, 6, 2)
+        pts = map_action(act, region, v, a, goal, cfg)
+        assert (pts.r_s, pts.r_l) == pytest.approx(radii(v, a, cfg), rel=1e-12)
+        d_s = np.array([math.cos(pts.theta_s), math.sin(pts.theta_s)])
+        d_l = np.array([math.cos(pts.theta_l), math.sin(pts.theta_l)])
+        assert pts.d_theta_s == pytest.approx(min(boundary_distance(region, np.zeros(2), d_s), pts.r_s), abs=1e-9)
+        assert pts.d_theta_l <= boundary_distance(region, pts.q_s, d_l) + 1e-9
+        assert pts.goal_inside == goal_inside(region, goal)
+        np.testing.assert_allclose(pts.q_l_ref, goal if pts.goal_inside else pts.q_l)
+    assert kinds == {True, False}
 
 
 def test_invalid_inputs_raise():
