@@ -211,10 +211,11 @@ class LidarConfig:
         noise_std: Gaussian noise per beam, metres (clipped to [0, max_range]).
         backend: ``analytic`` (exact 2-D ray casting) or ``mujoco`` (rangefinders).
         height: Beam height above the floor, metres.
-        rangefinders: Compile the 360 rangefinder sites and sensors into the robot (spec §2). The
-            ``analytic`` backend does not read them; ``false`` saves the sites' kinematics on every
-            physics evaluation (one per Euler step, four per RK4 step; ~40 % of a bare stage-7
-            mj_step). Exported worlds always have them.
+        rangefinders: Compile the 360 rangefinder sites and sensors into the task's robot (spec §2).
+            Off by default: neither backend reads them (``mujoco`` casts with ``mj_multiRay``; the
+            task disables sensors), and their site kinematics cost every physics evaluation (one
+            per Euler step, four per RK4 step; ~10 % of a whole stage-7 control step). Exported
+            worlds always have them.
     """
 
     beams: int = 360
@@ -222,7 +223,7 @@ class LidarConfig:
     noise_std: float = 0.05
     backend: Literal["analytic", "mujoco"] = "analytic"
     height: float = 0.3
-    rangefinders: bool = True
+    rangefinders: bool = False
 
     def __post_init__(self) -> None:
         check(self.beams >= 8, "beams", "must be >= 8")

@@ -143,9 +143,9 @@ class DmEnvTest(test_utils.EnvironmentTestMixin, absltest.TestCase):
 
 
 def test_rangefinder_sites_optional_for_analytic_lidar() -> None:
-    """lidar.rangefinders=false compiles no rangefinders and scans the same as with them."""
-    with_sites = NavGymEnv("stage5", seed=0)
-    without = NavGymEnv("stage5", overrides=["lidar.rangefinders=false"], seed=0)
+    """The task compiles no rangefinders by default and scans the same as with them."""
+    with_sites = NavGymEnv("stage5", overrides=["lidar.rangefinders=true"], seed=0)
+    without = NavGymEnv("stage5", seed=0)
     assert with_sites.physics.model.nsensor == 360 and without.physics.model.nsensor == 0
     obs_a, _ = with_sites.reset(seed=2)
     obs_b, _ = without.reset(seed=2)
