@@ -66,6 +66,7 @@ class OmniRobot(composer.Entity):
             name: MJCF model name (the namespace of its elements).
         """
         self._config = config
+        self._gains = (config.mass, config.kv, config.kp, config.force_max)  # read every substep
         self._lidar = lidar
         self._mjcf_root = mjcf.RootElement(model=name)
         self._body = self._mjcf_root.worldbody.add("body", name="base", pos=(0, 0, lidar.height))
@@ -237,8 +238,8 @@ class OmniRobot(composer.Entity):
         Substeps beyond the planned ``substeps`` follow the continuous reference (mean
         acceleration of the step plus feedback), so an over-long period still tracks it.
         """
-        plan = self.plan(physics)
-        k, dt, cfg = self._k, self._dt, self._config
+        plan = self._plan if self._plan is not None else self.plan(physics)
+        k, dt = self._k, self._dt
         if k < len(plan):
             ux, uy, vx, vy, px, py = plan[k]
         else:
@@ -247,18 +248,22 @@ class OmniRobot(composer.Entity):
             ux, uy = (self._a + self._j * (t + dt / 2)).tolist()
             vx, vy, px, py = float(v[0]), float(v[1]), float(p[0]), float(p[1])
         data = physics.data.ptr
-        qpos, qvel, ctrl = data.qpos, data.qvel, data.ctrl
-        m, kv, kp, fmax = cfg.mass, cfg.kv, cfg.kp, cfg.force_max
-        q, d = self._qpos_list, self._dof_list
-        fx = ux + kv * (vx - qvel[d[0]])  # plain floats: ~3x faster than 2-element numpy arithmetic
-        fy = uy + kv * (vy - qvel[d[1]])
+        qvel = data.qvel
+        m, kv, kp, fmax = self._gains
+        d0, d1 = self._dof_list
+        fx = ux + kv * (vx - qvel[d0])  # plain floats: ~3x faster than 2-element numpy arithmetic
+        fy = uy + kv * (vy - qvel[d1])
         if kp:
-            fx += kp * (px - qpos[q[0]])
-            fy += kp * (py - qpos[q[1]])
-        ctrl[self._ctrl_list[0]] = min(max(m * fx, -fmax), fmax)
-        ctrl[self._ctrl_list[1]] = min(max(m * fy, -fmax), fmax)
-        self._k = k + 1
-        self._t = self._k * dt
+            qpos = data.qpos
+            q0, q1 = self._qpos_list
+            fx += kp * (px - qpos[q0])
+            fy += kp * (py - qpos[q1])
+        ctrl = data.ctrl
+        c0, c1 = self._ctrl_list
+        ctrl[c0] = min(max(m * fx, -fmax), fmax)
+        ctrl[c1] = min(max(m * fy, -fmax), fmax)
+        self._k = k = k + 1
+        self._t = k * dt
 
 
 #: c in p⁺ = p + dt·v + c·dt²·u for one step of constant acceleration u, per MuJoCo integrator

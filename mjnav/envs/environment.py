@@ -36,25 +36,27 @@ class NavEnvironment(composer.Environment):
         return super().step(action)
 
     def _substep(self, action) -> None:
-        physics = self._physics
-        if physics.legacy_step:
-            super()._substep(action)
-            return
-        if self._substep_index == 0:  # the pointers stay valid for the step (no recompile mid-step)
+        k = self._substep_index
+        if k == 0:  # the pointers stay valid for the step (no recompile mid-step)
+            physics = self._physics
+            self._legacy = physics.legacy_step
             self._model_ptr, self._data_ptr = physics.model.ptr, physics.data.ptr
             self._warnings = physics.data.warning.number  # a view: read again after the last substep
-            self._warnings_before = self._warnings.copy()
+            self._warnings_before = self._warnings.tobytes()
+        if self._legacy:
+            super()._substep(action)
+            return
         self._hooks.before_substep(self._physics_proxy, action, self._random_state)
         mujoco.mj_step(self._model_ptr, self._data_ptr)
         self._hooks.after_substep(self._physics_proxy, self._random_state)
-        self._substep_index += 1
-        if self._substep_index == self._n_sub_steps:
-            self._check_warnings(physics)
+        self._substep_index = k = k + 1
+        if k == self._n_sub_steps and self._warnings.tobytes() != self._warnings_before:
+            self._raise_warnings(self._physics)
 
-    def _check_warnings(self, physics) -> None:
+    def _raise_warnings(self, physics) -> None:
         """Raises (or logs) a ``PhysicsError`` for MuJoCo warnings raised during this step."""
-        new = self._warnings > self._warnings_before
-        if not new.any():
+        new = self._warnings > np.frombuffer(self._warnings_before, dtype=self._warnings.dtype)
+        if not new.any():  # counters only fell (a reset inside a hook): nothing was raised
             return
         names = ", ".join(np.compress(new, _WARNING_NAMES))
         message = f"Physics state is invalid. Warning(s) raised: {names}"
