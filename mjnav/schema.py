@@ -209,7 +209,7 @@ class LidarConfig:
         beams: Number of beams (beam 0 along +x, counter-clockwise).
         max_range: Range, metres; no hit reads max_range.
         noise_std: Gaussian noise per beam, metres (clipped to [0, max_range]).
-        backend: ``analytic`` (exact 2-D ray casting) or ``mujoco`` (rangefinders).
+        backend: ``analytic`` (exact 2-D ray casting) or ``mujoco`` (MuJoCo ray casts in the world).
         height: Beam height above the floor, metres.
         rangefinders: Compile the 360 rangefinder sites and sensors into the task's robot (spec §2).
             Off by default: neither backend reads them (``mujoco`` casts with ``mj_multiRay``; the
