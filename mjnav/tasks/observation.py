@@ -14,9 +14,11 @@ The stack is ``[polygon_{t-2}, polygon_{t-1}, polygon_t, state_{t-2}, state_{t-1
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "DISTANCE_SCALE",
@@ -53,6 +55,11 @@ class Plan:
     q1_world: np.ndarray
     qn_world: np.ndarray
 
+    @functools.cached_property
+    def points(self) -> np.ndarray:
+        """(6, 2) rows q_s, q_l, q1, qn, q1_world, qn_world (what the jitted state block reads)."""
+        return np.array([self.q_s, self.q_l, self.q1, self.qn, self.q1_world, self.qn_world], dtype=np.float64)
+
 
 def observation_size(frames: int = 3, points: int = 60) -> int:
     """Length of the stacked observation (399 for the defaults)."""
@@ -69,29 +76,17 @@ def polygon_block(boundary: np.ndarray, inflation: float) -> np.ndarray:
     Returns:
         (2M,) float64 with r̂ = clip((r + R_inf)/10, 0, 1) and θ̂ = θ/2π.
     """
-    out = np.empty(2 * len(boundary))
-    r_hat = (boundary[:, 0] + inflation) / RANGE_SCALE
-    np.maximum(r_hat, 0.0, out=r_hat)
-    out[0::2] = np.minimum(r_hat, 1.0, out=r_hat)
-    out[1::2] = boundary[:, 1] / (2.0 * math.pi)
+    b = np.asarray(boundary, dtype=np.float64)
+    out = np.empty(2 * len(b))
+    _polygon_kernel(b, float(inflation), out)
     return out
 
 
-def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
-    """Signed angle from vector a to vector b in [−π, π] (0 for a zero vector)."""
-    cross = a[0] * b[1] - a[1] * b[0]
-    dot = a[0] * b[0] + a[1] * b[1]
-    return math.atan2(cross, dot)
-
-
-def _polar(p: np.ndarray, inflation: float) -> tuple[float, float]:
-    return math.atan2(p[1], p[0]) / math.pi, (math.hypot(p[0], p[1]) + inflation) / RANGE_SCALE
-
-
-def _heading_error(position, velocity, goal, plan: Plan | None, mode: str) -> float:
-    if mode == "mpc" and plan is not None:
-        return _angle_between(plan.qn_world - plan.q1_world, goal - plan.q1_world)
-    return _angle_between(velocity, goal - position)
+@njit(cache=True)
+def _polygon_kernel(boundary: np.ndarray, inflation: float, out: np.ndarray) -> None:  # pragma: no cover
+    for i in range(boundary.shape[0]):
+        out[2 * i] = min(max((boundary[i, 0] + inflation) / RANGE_SCALE, 0.0), 1.0)
+        out[2 * i + 1] = boundary[i, 1] / (2.0 * math.pi)
 
 
 def state_block(
@@ -117,20 +112,44 @@ def state_block(
     Returns:
         (13,) float64.
     """
+    robot = np.array([position, velocity, goal], dtype=np.float64).reshape(3, 2)
+    points = _NO_PLAN if plan is None else plan.points
     out = np.empty(STATE_SIZE)
-    out[0] = _heading_error(position, velocity, goal, plan, angle_mode) / math.pi
-    out[1] = math.hypot(*(goal - position)) / DISTANCE_SCALE
-    out[2:4] = velocity / SPEED_SCALE
-    out[4] = 1.0 if region_ok else 0.0
-    if plan is None:
-        out[5:7] = 0.0
-        out[7:9] = inflation / RANGE_SCALE
-        out[9:11] = 0.0
-        out[11:13] = inflation / RANGE_SCALE
-        return out
-    (out[5], out[7]), (out[6], out[8]) = _polar(plan.q_s, inflation), _polar(plan.q_l, inflation)
-    (out[9], out[11]), (out[10], out[12]) = _polar(plan.q1, inflation), _polar(plan.qn, inflation)
+    _state_kernel(robot, bool(region_ok), plan is not None, points, float(inflation), angle_mode == "mpc", out)
     return out
+
+
+_NO_PLAN = np.zeros((6, 2))
+
+
+@njit(cache=True)
+def _polar(x: float, y: float, inflation: float) -> tuple[float, float]:  # pragma: no cover - numba
+    return math.atan2(y, x) / math.pi, (math.hypot(x, y) + inflation) / RANGE_SCALE
+
+
+@njit(cache=True)
+def _state_kernel(
+    robot: np.ndarray, region_ok: bool, has_plan: bool, points: np.ndarray, inflation: float, mpc_angle: bool,
+    out: np.ndarray,
+) -> None:  # pragma: no cover - numba; fmt: skip
+    """:func:`state_block` into ``out``; rows of ``robot``: position, velocity, goal."""
+    gx, gy = robot[2, 0] - robot[0, 0], robot[2, 1] - robot[0, 1]  # velocity against goal - position
+    ax, ay = robot[1, 0], robot[1, 1]
+    if mpc_angle and has_plan:  # Q*_1 -> Q*_N against Q*_1 -> goal
+        ax, ay = points[5, 0] - points[4, 0], points[5, 1] - points[4, 1]
+        gx, gy = robot[2, 0] - points[4, 0], robot[2, 1] - points[4, 1]
+    out[0] = math.atan2(ax * gy - ay * gx, ax * gx + ay * gy) / math.pi
+    out[1] = math.hypot(robot[2, 0] - robot[0, 0], robot[2, 1] - robot[0, 1]) / DISTANCE_SCALE
+    out[2], out[3] = robot[1, 0] / SPEED_SCALE, robot[1, 1] / SPEED_SCALE
+    out[4] = 1.0 if region_ok else 0.0
+    if not has_plan:
+        out[5] = out[6] = out[9] = out[10] = 0.0
+        out[7] = out[8] = out[11] = out[12] = inflation / RANGE_SCALE
+        return
+    out[5], out[7] = _polar(points[0, 0], points[0, 1], inflation)
+    out[6], out[8] = _polar(points[1, 0], points[1, 1], inflation)
+    out[9], out[11] = _polar(points[2, 0], points[2, 1], inflation)
+    out[10], out[12] = _polar(points[3, 0], points[3, 1], inflation)
 
 
 class FrameStack:
