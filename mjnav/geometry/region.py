@@ -140,14 +140,19 @@ def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig 
     cfg = config if config is not None else _DEFAULT
     r, th = _validate(ranges, angles, cfg.num_points)
     cos, sin, ordered = _trig(th)
-    shrunk = np.minimum(r, cfg.max_range) - cfg.inflation  # r < 0 ends at 0 as well, below
-    np.maximum(shrunk, 0.0, out=shrunk)
-    status, verts, normals, offsets, polar, xy = _galaxy(
-        shrunk * cos, shrunk * sin, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points, ordered
-    )
+    status, verts, normals, offsets, polar, xy = _galaxy_scan(
+        r, cos, sin, cfg.max_range, cfg.inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points,
+        ordered,
+    )  # fmt: skip
     if status != 0:
-        return _fallback(shrunk, th, cfg.num_points, STATUS_NAMES[status])
+        return _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, STATUS_NAMES[status])
     return Region(verts, normals, offsets, polar, xy, True, "ok")
+
+
+def _shrink(r: np.ndarray, max_range: float, inflation: float) -> np.ndarray:
+    """Ranges clipped to ``max_range`` and shrunk by ``inflation``, at least 0 (spec step 1)."""
+    shrunk = np.minimum(r, max_range) - inflation  # r < 0 ends at 0 as well, below
+    return np.maximum(shrunk, 0.0, out=shrunk)
 
 
 def warm_up() -> None:
@@ -205,6 +210,19 @@ def _fallback(shrunk: np.ndarray, angles: np.ndarray, num_points: int, status: s
 
 
 # ----------------------------------------------------------------------------- numba kernels
+
+
+@njit(cache=True)
+def _galaxy_scan(
+    r: np.ndarray, cos: np.ndarray, sin: np.ndarray, max_range: float, inflation: float, flip_radius: float,
+    push: float, max_vertices: int, num_points: int, ordered: bool,
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba; fmt: skip
+    """:func:`_galaxy` on the ranges: shrinks them as :func:`_shrink` and takes the points."""
+    px, py = np.empty(r.shape[0]), np.empty(r.shape[0])
+    for i in range(r.shape[0]):
+        shrunk = max(min(r[i], max_range) - inflation, 0.0)
+        px[i], py[i] = shrunk * cos[i], shrunk * sin[i]
+    return _galaxy(px, py, flip_radius, push, max_vertices, num_points, ordered)
 
 
 @njit(cache=True)
