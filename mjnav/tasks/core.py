@@ -116,6 +116,7 @@ class NavCore:
         self._angles = beam_angles(config.lidar.beams)
         self._mpc = Mpc(config.mpc)
         self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points)
+        self._reward_terms = reward_lib.weighted_terms(config.reward)
         self.counters = {"region_failures": 0, "fallbacks": 0, "steps": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
 
@@ -155,7 +156,7 @@ class NavCore:
             ValueError: If the action has the wrong shape or a non-finite value.
         """
         action = np.asarray(action, dtype=np.float64).reshape(-1)
-        if action.shape != (4,) or not np.all(np.isfinite(action)):
+        if action.shape != (4,) or not np.isfinite(action).all():
             raise ValueError(f"action must be 4 finite values, got {action!r}")
         goal_rel = self.goal - position
         t0 = time.perf_counter()
@@ -230,7 +231,7 @@ class NavCore:
         self.counters["steps"] += 1
         pending, prev = self._pending, self._prev
         distance = math.hypot(*(self.goal - position))
-        min_scan = max(float(np.min(scan)) - self._inflation, 0.0)
+        min_scan = max(float(scan.min()) - self._inflation, 0.0)
         collision = contact if self.config.collision == "contact" else min_scan <= 0.0
         success = distance < self.config.reward.goal_tolerance and not collision
         self.outcome = self._outcome(success, collision)
@@ -242,7 +243,7 @@ class NavCore:
             control_period=self.config.timing.control_period,
         )
         t0 = time.perf_counter()
-        reward, terms = reward_lib.total(inputs, self.config.reward)
+        reward, terms = reward_lib.total(inputs, self.config.reward, self._reward_terms)
         self.timers["reward"] += time.perf_counter() - t0
         self._plan = pending["plan"]
         self._prev = {"q_s": pending["q_s"], "q_l": pending["q_l"], "plan_ok": pending["plan_ok"],

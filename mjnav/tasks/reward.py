@@ -15,7 +15,7 @@ import numpy as np
 
 from mjnav.schema import RewardConfig
 
-__all__ = ["RewardInputs", "TERMS", "compute_terms", "enabled_terms", "total", "weights"]
+__all__ = ["TERMS", "RewardInputs", "compute_terms", "enabled_terms", "total", "weighted_terms", "weights"]
 
 TERMS = (
     "success", "collision", "proximity", "approach", "feasibility", "change", "slow", "velocity_change", "constant",
@@ -132,13 +132,27 @@ def enabled_terms(cfg: RewardConfig) -> tuple[str, ...]:
     return tuple(t for t in TERMS if t not in _DISABLED[cfg.variant])
 
 
-def total(inp: RewardInputs, cfg: RewardConfig) -> tuple[float, dict[str, float]]:
+def weighted_terms(cfg: RewardConfig) -> tuple[tuple[str, float], ...]:
+    """(name, weight) of the enabled terms, in :data:`TERMS` order."""
+    w = weights(cfg)
+    return tuple((name, w[name]) for name in enabled_terms(cfg))
+
+
+def total(
+    inp: RewardInputs, cfg: RewardConfig, terms_weights: tuple[tuple[str, float], ...] | None = None
+) -> tuple[float, dict[str, float]]:
     """Step reward and its weighted terms (disabled terms are absent).
+
+    Args:
+        inp: The step's inputs.
+        cfg: Reward weights and variant.
+        terms_weights: :func:`weighted_terms` of ``cfg``, if the caller keeps it (it is the same
+            every step); computed here otherwise.
 
     Returns:
         (reward, {name: weight·term}) with reward equal to the sum of the dict's values.
     """
     terms = compute_terms(inp, cfg)
-    w = weights(cfg)
-    weighted = {name: w[name] * terms[name] for name in enabled_terms(cfg)}
+    pairs = weighted_terms(cfg) if terms_weights is None else terms_weights
+    weighted = {name: weight * terms[name] for name, weight in pairs}
     return float(sum(weighted.values())), weighted
