@@ -129,22 +129,7 @@ def reach_distance(velocity: np.ndarray, acceleration: np.ndarray, t: float, jer
         Distance in metres.
     """
     vx, vy, ax, ay = float(velocity[0]), float(velocity[1]), float(acceleration[0]), float(acceleration[1])
-    return max(_reaches(vx, vy, ax, ay, (t,), jerk_norm)[0])
-
-
-def _reaches(
-    vx: float, vy: float, ax: float, ay: float, times: tuple[float, ...], jerk: float
-) -> list[list[float]]:
-    """Per time, the travel for the four jerk directions (velocity, acceleration, ± bisector)."""
-    th_v, th_a = math.atan2(vy, vx), math.atan2(ay, ax)
-    th_b = th_v + _wrap(th_a - th_v) / 2.0
-    units = [(math.cos(th), math.sin(th)) for th in (th_v, th_a, th_b)]
-    units.append((-units[2][0], -units[2][1]))
-    out = []
-    for t in times:
-        bx, by, jt = vx * t + ax * t * t / 2.0, vy * t + ay * t * t / 2.0, jerk * t**3 / 6.0
-        out.append([math.hypot(bx + jt * c, by + jt * s) for c, s in units])
-    return out
+    return _reach_max(vx, vy, ax, ay, float(t), float(jerk_norm))
 
 
 def map_action(
@@ -192,10 +177,7 @@ def _map_kernel(
     short_scale: float, long_min_radius: float,
 ) -> tuple:  # pragma: no cover - numba; fmt: skip
     """:func:`map_action` on floats: (qsx, qsy, qlx, qly, θ_s, θ_l, d_s, d_l, R_s, R_l, inside)."""
-    r_s = short_scale * _reach_max(vx, vy, ax, ay, t_c, jerk)
-    r_l = _reach_max(vx, vy, ax, ay, long_time, jerk)
-    if code_circle:
-        r_l = max(long_min_radius, r_l)
+    r_s, r_l = _radii_kernel(vx, vy, ax, ay, jerk, t_c, long_time, short_scale, code_circle, long_min_radius)
     theta_s = TWO_PI * a_s + (math.atan2(vy, vx) if heading_velocity else 0.0)
     cs, ss = math.cos(theta_s), math.sin(theta_s)
     d_s = min(_boundary(convex, normals, offsets, star, 0.0, 0.0, cs, ss), r_s)
@@ -213,19 +195,14 @@ def _map_kernel(
 
 def radii(velocity: np.ndarray, acceleration: np.ndarray, config: ActionConfig) -> tuple[float, float]:
     """Short- and long-term circle radii ``(R_s, R_l)`` in metres (spec §4)."""
-    return _radii(
-        float(velocity[0]), float(velocity[1]), float(acceleration[0]), float(acceleration[1]), config
-    )
-
-
-def _radii(vx: float, vy: float, ax: float, ay: float, config: ActionConfig) -> tuple[float, float]:
-    short, long = _reaches(vx, vy, ax, ay, (config.t_c, config.long_time), config.jerk_max * math.sqrt(2.0))
-    r_s, r_l = config.short_scale * max(short), max(long)
-    return r_s, (max(config.long_min_radius, r_l) if config.long_circle == "code" else r_l)
+    return _radii_kernel(
+        float(velocity[0]), float(velocity[1]), float(acceleration[0]), float(acceleration[1]),
+        config.jerk_max * math.sqrt(2.0), config.t_c, config.long_time, config.short_scale,
+        config.long_circle == "code", config.long_min_radius,
+    )  # fmt: skip
 
 
 _DEFAULT = ActionConfig()
-_ORIGIN = np.zeros(2)
 
 
 @njit(cache=True)
@@ -236,7 +213,7 @@ def _wrap(angle: float) -> float:
 
 @njit(cache=True)
 def _reach_max(vx: float, vy: float, ax: float, ay: float, t: float, jerk: float) -> float:  # pragma: no cover
-    """Largest travel of :func:`_reaches` at one time (same directions and arithmetic)."""
+    """Farthest travel over t for the four jerk directions (velocity, acceleration, ± bisector)."""
     th_v, th_a = math.atan2(vy, vx), math.atan2(ay, ax)
     th_b = th_v + _wrap(th_a - th_v) / 2.0
     bx, by, jt = vx * t + ax * t * t / 2.0, vy * t + ay * t * t / 2.0, jerk * t**3 / 6.0
@@ -245,6 +222,16 @@ def _reach_max(vx: float, vy: float, ax: float, ay: float, t: float, jerk: float
         c, s = sign * math.cos(th), sign * math.sin(th)
         best = max(best, math.hypot(bx + jt * c, by + jt * s))
     return best
+
+
+@njit(cache=True)
+def _radii_kernel(
+    vx: float, vy: float, ax: float, ay: float, jerk: float, t_c: float, long_time: float, short_scale: float,
+    code_circle: bool, long_min_radius: float,
+) -> tuple[float, float]:  # pragma: no cover - numba; fmt: skip
+    """(R_s, R_l) of :func:`radii` on floats (``jerk`` is the jerk norm, m/s³)."""
+    r_l = _reach_max(vx, vy, ax, ay, long_time, jerk)
+    return short_scale * _reach_max(vx, vy, ax, ay, t_c, jerk), (max(long_min_radius, r_l) if code_circle else r_l)
 
 
 @njit(cache=True)

@@ -149,12 +149,6 @@ def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig 
     return Region(verts, normals, offsets, polar, xy, True, "ok")
 
 
-def _shrink(r: np.ndarray, max_range: float, inflation: float) -> np.ndarray:
-    """Ranges clipped to ``max_range`` and shrunk by ``inflation``, at least 0 (spec step 1)."""
-    shrunk = np.minimum(r, max_range) - inflation  # r < 0 ends at 0 as well, below
-    return np.maximum(shrunk, 0.0, out=shrunk)
-
-
 def warm_up() -> None:
     """Compile (or load from the numba cache) the jitted kernels with a small synthetic scan."""
     angles = np.linspace(0.0, 2.0 * math.pi, 360, endpoint=False)
@@ -217,12 +211,18 @@ def _galaxy_scan(
     r: np.ndarray, cos: np.ndarray, sin: np.ndarray, max_range: float, inflation: float, flip_radius: float,
     push: float, max_vertices: int, num_points: int, ordered: bool,
 ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba; fmt: skip
-    """:func:`_galaxy` on the ranges: shrinks them as :func:`_shrink` and takes the points."""
-    px, py = np.empty(r.shape[0]), np.empty(r.shape[0])
+    """:func:`_galaxy` on the ranges, shrunk by :func:`_shrink`."""
+    shrunk = _shrink(r, max_range, inflation)
+    return _galaxy(shrunk * cos, shrunk * sin, flip_radius, push, max_vertices, num_points, ordered)
+
+
+@njit(cache=True)
+def _shrink(r: np.ndarray, max_range: float, inflation: float) -> np.ndarray:  # pragma: no cover - numba
+    """Ranges clipped to ``max_range`` and shrunk by ``inflation``, at least 0 (spec step 1)."""
+    shrunk = np.empty(r.shape[0])
     for i in range(r.shape[0]):
-        shrunk = max(min(r[i], max_range) - inflation, 0.0)
-        px[i], py[i] = shrunk * cos[i], shrunk * sin[i]
-    return _galaxy(px, py, flip_radius, push, max_vertices, num_points, ordered)
+        shrunk[i] = max(min(r[i], max_range) - inflation, 0.0)  # r < 0 ends at 0 as well
+    return shrunk
 
 
 @njit(cache=True)
