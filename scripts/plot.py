@@ -22,18 +22,6 @@ def _parse(argv: list[str]) -> tuple[dict, list[str]]:
     return {k: v for k, v in opts.items() if v is not None}, overrides
 
 
-def _load(args: dict[str, str], overrides: list[str]) -> tuple:
-    """Environment, agent and episode seed (ValueError/FileNotFoundError on bad input)."""
-    from mjnav.envs.gym_env import NavGymEnv
-    from mjnav.eval.policies import load_policy
-    from mjnav.eval.runner import held_out_seed
-
-    env = NavGymEnv(args.get("task", "stage6"), overrides=overrides or None, seed=0)
-    agent = load_policy(args.get("policy", "mpc_goal"))
-    seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
-    return env, agent, seed
-
-
 def _episode(env, agent, seed: int, args: dict[str, str]) -> str:
     from mjnav.eval.plots import plot_episode
     from mjnav.eval.runner import run_episode
@@ -56,8 +44,10 @@ def main(argv: list[str]) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     if argv[0] == "episode":
+        from mjnav.eval.runner import episode_setup
+
         try:
-            loaded = _load(args, overrides)
+            loaded = episode_setup(args, overrides)
         except (ValueError, FileNotFoundError) as err:
             print(f"error: {err}", file=sys.stderr)
             return 2

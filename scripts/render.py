@@ -32,15 +32,11 @@ def main(argv: list[str]) -> int:
     except (ValueError, GlBackendError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    from mjnav.envs.gym_env import NavGymEnv
-    from mjnav.eval.policies import load_policy
     from mjnav.eval.render import RenderConfig, render_episode
-    from mjnav.eval.runner import held_out_seed
+    from mjnav.eval.runner import episode_setup
 
     try:  # bad task, override, policy or value: one line, before anything is rendered
-        env = NavGymEnv(args.get("task", "stage6"), overrides=overrides or None, seed=0)
-        agent = load_policy(args.get("policy", "mpc_goal"))
-        seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
+        env, agent, seed = episode_setup(args, overrides)
         frames = int(args["frames"]) if "frames" in args else None
         config = RenderConfig(args.get("view", "top"), int(args.get("width", 480)), int(args.get("height", 480)),
                               frames, str(args.get("rays", False)).lower() in ("1", "true", "yes"))

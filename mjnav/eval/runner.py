@@ -41,6 +41,7 @@ __all__ = [
     "EpisodeTrace",
     "EvalError",
     "EvalSpec",
+    "episode_setup",
     "evaluate",
     "evaluate_tasks",
     "git_commit",
@@ -181,6 +182,26 @@ def _stack_peds(peds: list[np.ndarray]) -> np.ndarray:
     for k, p in enumerate(peds):
         out[k, : len(p)] = p
     return out
+
+
+def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGymEnv, Agent, int]:
+    """Environment, agent and episode seed of one scripted episode (``scripts/render.py``, ``plot.py``).
+
+    Args:
+        args: ``task`` (default stage6), ``policy`` (default mpc_goal), and ``episode_seed`` (a raw
+            episode seed) or ``seed`` (held-out scenario index, default 0).
+        overrides: Task config overrides.
+
+    Raises:
+        ValueError, FileNotFoundError: A bad task, override, policy or seed.
+    """
+    from mjnav.envs.gym_env import NavGymEnv
+    from mjnav.eval.policies import load_policy
+
+    env = NavGymEnv(args.get("task", "stage6"), overrides=list(overrides) or None, seed=0)
+    agent = load_policy(args.get("policy", "mpc_goal"))
+    seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
+    return env, agent, seed
 
 
 def run_episode(
