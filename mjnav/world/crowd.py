@@ -54,6 +54,7 @@ class PedestrianModel(abc.ABC):
         self._radius = np.zeros(0)
         self._speed = np.zeros(0)
         self._bounds = np.zeros(4)
+        self._box = (0.0, 0.0, 0.0, 0.0)
         self._verts = np.zeros((0, 2))
         self._offsets = np.zeros(1, dtype=np.int64)
         self._rng: np.random.Generator | None = None
@@ -91,6 +92,7 @@ class PedestrianModel(abc.ABC):
         _check_inside(pos, box)
         self._pos = _clamp_to_bounds(pos, radii, box)
         self._radius, self._speed, self._bounds = radii, speeds, box
+        self._box = tuple(float(x) for x in box)  # plain floats: cheaper numba dispatch than np scalars
         self._verts, self._offsets = pack_polygons(obstacles)
         self._rng = rng
         self._vel = speeds[:, None] * np.stack([np.cos(headings), np.sin(headings)], axis=1)
@@ -211,7 +213,7 @@ class RandomWalkModel(PedestrianModel):
             self._since_draw += dt
             omegas[k] = self._omega
         track = np.empty((steps, *self._pos.shape))
-        xmin, ymin, xmax, ymax = self._bounds
+        xmin, ymin, xmax, ymax = self._box
         _random_walk_steps(
             self._pos, self._vel, self._heading, omegas, self._speed, self._radius,
             dt, xmin, ymin, xmax, ymax, self._verts, self._offsets, track,
@@ -395,20 +397,26 @@ def _random_walk_steps(
     radius: np.ndarray, dt: float, xmin: float, ymin: float, xmax: float, ymax: float,
     verts: np.ndarray, offsets: np.ndarray, track: np.ndarray,
 ) -> None:  # fmt: skip
-    """``len(omegas)`` random-walk steps in place (yaw rates per step); positions into ``track``."""
+    """``len(omegas)`` random-walk steps in place (yaw rates per step); positions into ``track``.
+
+    Velocities follow the final headings (intermediate ones are never read).
+    """
     for k in range(omegas.shape[0]):
-        _random_walk_step(pos, vel, heading, omegas[k], speed, radius, dt, xmin, ymin, xmax, ymax,
-                          verts, offsets)
+        _random_walk_step(pos, heading, omegas[k], speed, radius, dt, xmin, ymin, xmax, ymax, verts, offsets)
         track[k] = pos
+    for i in range(pos.shape[0]):
+        vel[i, 0] = speed[i] * math.cos(heading[i])
+        vel[i, 1] = speed[i] * math.sin(heading[i])
 
 
 @numba.njit(cache=True)
 def _random_walk_step(
-    pos: np.ndarray, vel: np.ndarray, heading: np.ndarray, omega: np.ndarray, speed: np.ndarray,
+    pos: np.ndarray, heading: np.ndarray, omega: np.ndarray, speed: np.ndarray,
     radius: np.ndarray, dt: float, xmin: float, ymin: float, xmax: float, ymax: float,
     verts: np.ndarray, offsets: np.ndarray,
 ) -> None:  # fmt: skip
-    """One random-walk step in place: turn, move, bounce off pedestrians, obstacles, walls."""
+    """One random-walk step of positions and headings in place: turn, move, bounce off pedestrians,
+    obstacles, walls."""
     n = pos.shape[0]
     for i in range(n):
         h = heading[i] + omega[i] * dt
@@ -437,8 +445,6 @@ def _random_walk_step(
                 pos[i, 1] += (radius[i] - dist) * ny
                 heading[i] = _reflect(heading[i], nx, ny)
         _bounce_walls(pos, heading, radius, i, xmin, ymin, xmax, ymax)
-        vel[i, 0] = speed[i] * math.cos(heading[i])
-        vel[i, 1] = speed[i] * math.sin(heading[i])
 
 
 @numba.njit(cache=True)
