@@ -77,7 +77,10 @@ class MpcConfig:
         drop_unreachable: Drop half-planes no feasible trajectory can reach (see module doc).
         soft: Soften the polygon rows with one slack ``σ >= 0`` (cost ``soft_weight·(σ² + σ)``).
         soft_weight: Slack weight.
-        warm_start: Warm-start DAQP/OSQP with the shifted previous solution.
+        warm_start: Hand the solver the shifted previous solution (OSQP: its starting iterate;
+            DAQP: ``primal_start``, from which it derives the initial active set). None: the
+            solver's own default: warm for OSQP (spec §5), cold for DAQP, which solved recorded
+            stage-7 problem sequences faster cold, with the same jerks (``docs/results.md``).
         feasibility_tol: Largest accepted constraint violation of a returned solution (SI).
         brake_velocity_weight: Weight of Σ|v_k|² (vs 1 on Σ|a_k|²) in the braking fallback.
     """
@@ -97,7 +100,7 @@ class MpcConfig:
     drop_unreachable: bool = True
     soft: bool = False
     soft_weight: float = 1e5
-    warm_start: bool = True
+    warm_start: bool | None = None
     feasibility_tol: float = 1e-5
     brake_velocity_weight: float = 10.0
 
@@ -214,6 +217,8 @@ class Mpc:
             self._lb[-1], self._ub[-1] = 0.0, INF
         self._backend = make_backend(cfg.solver, self._a_fixed, self._gamma[0], cfg.max_halfplanes, cfg.soft)
         self._brake_h = self._brake_hessian()
+        #: Whether solves are warm-started (``config.warm_start``, resolved for the solver).
+        self.warm_start = cfg.solver == "osqp" if cfg.warm_start is None else cfg.warm_start
         self.stats: dict[str, int] = {}
         self.reset()
 
@@ -275,7 +280,7 @@ class Mpc:
         else:
             self.stats["failures"] += 1
             x, fallback = self._fallback(s, qs, ql, normals, stop)
-        self._warm = _shift(x, cfg.horizon) if (cfg.warm_start and fallback is None) else None
+        self._warm = _shift(x, cfg.horizon) if (self.warm_start and fallback is None) else None
         return self._result(s, x, sol, fallback, rows, time.perf_counter() - start)
 
     def _attempt(

@@ -12,9 +12,9 @@ where ``A_fixed`` (velocity and acceleration rows) is constant and the polygon r
 every call. Backends never raise on a failed solve: they return ``ok=False`` with the solver's
 status.
 
-* :class:`DaqpBackend` (default): dense dual active set; warm-started by handing DAQP the
-  shifted previous solution as ``primal_start`` (DAQP derives the initial active set from it),
-  retried cold when the warm start is rejected.
+* :class:`DaqpBackend` (default): dense dual active set; when given a warm start (the shifted
+  previous solution, off by default for DAQP) it is passed as ``primal_start`` (DAQP derives the
+  initial active set from it), retried cold when the warm start is rejected.
 * :class:`OsqpBackend`: sparse ADMM built once with a frozen sparsity pattern: the polygon rows
   live in ``steps × max_halfplanes`` slots whose lower-triangular entries are always structural
   (unused slots are inert: zero coefficients, bounds ±inf). Only ``q``, ``l``, ``u`` and the slot
@@ -92,7 +92,7 @@ class QpSolution:
 
 
 class DaqpBackend:
-    """Dense active-set backend (DAQP), warm-started with the shifted previous solution."""
+    """Dense active-set backend (DAQP), optionally warm-started with a primal start."""
 
     name = "daqp"
 

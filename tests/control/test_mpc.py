@@ -214,12 +214,21 @@ def test_dropping_unreachable_halfplanes_keeps_the_solution():
 def test_warm_start_gives_the_cold_solution():
     """Warm-started DAQP returns the same plans as cold solves along a random sequence."""
     rng = np.random.default_rng(4)
-    warm, cold = Mpc(), Mpc(MpcConfig(warm_start=False))
+    warm, cold = Mpc(MpcConfig(warm_start=True)), Mpc(MpcConfig(warm_start=False))
+    assert warm.warm_start and not cold.warm_start
     for _ in range(100):
         state, q_s, q_l, poly = _random_case(rng)
         a, b = warm.solve(state, q_s, q_l, poly), cold.solve(state, q_s, q_l, poly)
         if a.ok and b.ok:
             assert np.allclose(a.jerks, b.jerks, atol=1e-5)
+
+
+def test_warm_start_default_follows_the_solver():
+    """Unset, warm_start is on for OSQP (spec §5) and off for DAQP; an explicit value wins."""
+    assert Mpc(MpcConfig(solver="osqp")).warm_start
+    assert not Mpc().warm_start
+    assert Mpc(MpcConfig(warm_start=True)).warm_start
+    assert not Mpc(MpcConfig(solver="osqp", warm_start=False)).warm_start
 
 
 def test_cost_stop_goal_inside_option():
