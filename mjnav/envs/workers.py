@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["OUTCOMES", "EnvError"]
+__all__ = ["OUTCOMES", "EnvError", "usable_cores"]
 
 OUTCOMES: tuple[str, ...] = ("running", "success", "collision", "timeout")
 """Outcome names; ``extras["outcomes"]`` holds their indices."""
@@ -268,7 +268,11 @@ def _context(start_method: str) -> Any:
     return ctx
 
 
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity mask where the OS has one)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def _default_workers(num_envs: int) -> int:
     """One worker per usable CPU core, at most one per environment."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, min(num_envs, cores))
+    return max(1, min(num_envs, usable_cores()))

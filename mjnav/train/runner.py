@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import math
 import re
 import signal
@@ -38,6 +39,7 @@ from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils.log_writer import LogWriter
 
 from mjnav.envs.vec_env import NavVecEnv
+from mjnav.envs.workers import usable_cores
 from mjnav.train.config import TrainConfig
 
 if TYPE_CHECKING:
@@ -168,8 +170,30 @@ def build_runner(
             env, rsl_config(train, label), None if log_dir is None else str(log_dir), train.device
         )
     runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
+    _thread_the_update(runner, train.update_threads or usable_cores())
     runner.mjnav_verbose = train.verbose  # type: ignore[attr-defined]
     return runner
+
+
+def _thread_the_update(runner: OnPolicyRunner, threads: int) -> None:
+    """Run each PPO update with ``threads`` intra-op threads, collection with the current count.
+
+    The env workers wait while the trainer updates, so the update can use every core; during
+    collection extra torch threads would spin against the workers. Wraps the runner's
+    ``alg.update`` on the instance (rsl-rl itself is not modified).
+    """
+    update = runner.alg.update
+
+    @functools.wraps(update)
+    def threaded_update(*args: Any, **kwargs: Any) -> Any:
+        collecting = torch.get_num_threads()
+        torch.set_num_threads(threads)
+        try:
+            return update(*args, **kwargs)
+        finally:
+            torch.set_num_threads(collecting)
+
+    runner.alg.update = threaded_update
 
 
 def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool = False) -> None:

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from rsl_rl.algorithms import PPO
 from rsl_rl.runners import OnPolicyRunner
 
 from mjnav.envs.vec_env import NavVecEnv
@@ -136,6 +137,30 @@ def test_two_iterations_write_checkpoints_and_events(tiny: TrainConfig, tmp_path
         "perf/env_step_ms",
     } <= tags
     assert "episode/success" in tags and not any(t.startswith("Episode/") for t in tags)
+
+
+def test_update_runs_with_update_threads_and_collection_with_torch_threads(
+    tiny: TrainConfig, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Each PPO update runs with train.update_threads; collection gets torch_threads back."""
+    seen: list[int] = []
+    original = PPO.update
+
+    def spy(self, *args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(PPO, "update", spy)
+    before = torch.get_num_threads()
+    try:
+        train = dataclasses.replace(tiny, torch_threads=1, update_threads=2)
+        runner = build_runner(make_fake_env(None, train), train, tmp_path)
+        learn(runner, 2)
+        runner.env.close()
+        assert seen == [2, 2]
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before)
 
 
 def test_resume_continues_iteration_count(tiny: TrainConfig, tmp_path: Path) -> None:
