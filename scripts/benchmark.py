@@ -1,6 +1,6 @@
 """Environment throughput: steps/s for 1 env and the vectorised adapter, with a per-part breakdown.
 
-    python scripts/benchmark.py task=stage7 [rounds=5] [steps=400] [vec_steps=40] [num_envs=16]
+    python scripts/benchmark.py task=stage7 [rounds=5] [steps=400] [vec_steps=10] [num_envs=64]
                                 [task.crowd.count=25]
 
 Prints, all from one run:
@@ -8,7 +8,8 @@ Prints, all from one run:
   * one environment through the composer task with random actions: steps/s and µs per part
     (physics = substeps incl. pedestrians and tracking force, lidar, region, action mapping, MPC,
     reward, observation, rest = composer and adapter overhead);
-  * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments with 1, 2 and all-core workers
+  * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments (default: the training
+    default, ``train.num_envs``) with 1, 2 and all-core workers
     (this process stepping the first block), and all-core worker processes with this process idle.
 
 This machine's speed drifts by up to 2x within minutes, so every configuration is built first
@@ -31,8 +32,10 @@ from mjnav.config import load_task
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.schema import ConfigError, split_args
 from mjnav.timing import Block, time_rounds
+from mjnav.train.config import TrainConfig
 
-SCRIPT_KEYS = {"task": "stage7", "rounds": 5, "steps": 400, "vec_steps": 40, "num_envs": 16, "seed": 0}
+SCRIPT_KEYS = {"task": "stage7", "rounds": 5, "steps": 400, "vec_steps": 10, "num_envs": TrainConfig.num_envs,
+               "seed": 0}
 
 def bare_physics(env: NavGymEnv, steps: int) -> Block:
     """Blocks of ``steps`` mj_step calls on a copy of the environment's compiled model and data."""
