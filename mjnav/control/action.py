@@ -37,6 +37,9 @@ import numpy as np
 from numba import njit
 
 from mjnav.geometry.polygon import (
+    _point_in_halfplanes,
+    _ray_circle,
+    _ray_convex,
     _ray_polyline,
     point_in_halfplanes,
     points_in_polygon,
@@ -187,7 +190,7 @@ def _map_kernel(
     d_l = min(_boundary(convex, normals, offsets, star, qsx, qsy, cl, sl), _ray_circle(qsx, qsy, cl, sl, r_l))
     qlx, qly = qsx + (b_l * d_l) * cl, qsy + (b_l * d_l) * sl
     if convex:
-        inside = _in_halfplanes(gx, gy, normals, offsets)
+        inside = _point_in_halfplanes(np.array((gx, gy)), normals, offsets, 0.0)
     else:
         inside = _in_star(gx, gy, star)
     return qsx, qsy, qlx, qly, _wrap(theta_s), _wrap(theta_l), d_s, d_l, r_s, r_l, inside
@@ -239,36 +242,12 @@ def _boundary(
     convex: bool, normals: np.ndarray, offsets: np.ndarray, star: np.ndarray, ox: float, oy: float,
     dx: float, dy: float,
 ) -> float:  # pragma: no cover - numba; fmt: skip
-    """:func:`boundary_distance` on floats."""
-    if convex:
-        best = math.inf
-        for j in range(normals.shape[0]):
-            facing = normals[j, 0] * dx + normals[j, 1] * dy
-            if facing > 1e-15:
-                best = min(best, (offsets[j] - normals[j, 0] * ox - normals[j, 1] * oy) / facing)
-        return max(0.0, best)
+    """:func:`boundary_distance` on floats (the geometry module's jitted ray casts)."""
     origin, direction = np.array((ox, oy)), np.array((dx, dy))
+    if convex:
+        return _ray_convex(origin, direction, normals, offsets)
     hit = _ray_polyline(origin, direction, star)
     return 0.0 if math.isinf(hit) else hit
-
-
-@njit(cache=True)
-def _ray_circle(ox: float, oy: float, dx: float, dy: float, radius: float) -> float:  # pragma: no cover
-    """:func:`~mjnav.geometry.polygon.ray_circle_distance` on floats."""
-    b = ox * dx + oy * dy
-    c = ox * ox + oy * oy - radius * radius
-    if c >= 0.0:
-        return 0.0
-    return -b + math.sqrt(b * b - c)
-
-
-@njit(cache=True)
-def _in_halfplanes(x: float, y: float, normals: np.ndarray, offsets: np.ndarray) -> bool:  # pragma: no cover
-    """:func:`~mjnav.geometry.polygon.point_in_halfplanes` (tol 0) on floats."""
-    for j in range(normals.shape[0]):
-        if normals[j, 0] * x + normals[j, 1] * y > offsets[j]:
-            return False
-    return True
 
 
 @njit(cache=True)

@@ -298,12 +298,18 @@ def ray_circle_distance(origin: np.ndarray, direction: np.ndarray, radius: float
         The positive root of ``|origin + t·direction| = radius``; ``0`` if the start point is on
         or outside the circle.
     """
-    ox, oy = float(origin[0]), float(origin[1])
-    b = ox * direction[0] + oy * direction[1]
+    ox, oy, dx, dy = float(origin[0]), float(origin[1]), float(direction[0]), float(direction[1])
+    return _ray_circle(ox, oy, dx, dy, float(radius))
+
+
+@njit(cache=True)
+def _ray_circle(ox: float, oy: float, dx: float, dy: float, radius: float) -> float:  # pragma: no cover
+    """Numba core of :func:`ray_circle_distance` on floats (callable from other ``@njit`` code)."""
+    b = ox * dx + oy * dy
     c = ox * ox + oy * oy - radius * radius
     if c >= 0.0:
         return 0.0
-    return float(-b + math.sqrt(b * b - c))
+    return -b + math.sqrt(b * b - c)
 
 
 @njit(cache=True)
