@@ -37,6 +37,7 @@ from mjnav.train.config import TrainConfig
 SCRIPT_KEYS = {"task": "stage7", "rounds": 5, "steps": 400, "vec_steps": 10, "num_envs": TrainConfig.num_envs,
                "seed": 0}
 
+
 def bare_physics(env: NavGymEnv, steps: int) -> Block:
     """Blocks of ``steps`` mj_step calls on a copy of the environment's compiled model and data."""
     model = env.physics.model.ptr
