@@ -259,6 +259,8 @@ def test_override_rejection() -> None:
         load_train(["num_env=4"])
     with pytest.raises(ConfigError, match="minibatches"):
         load_train(["num_envs=3", "steps_per_env=3", "minibatches=4"])
+    with pytest.raises(ConfigError, match="update_threads"):
+        load_train(["update_threads=-1"])
     with pytest.raises(ConfigError, match="curriculum"):
         session.parse_args(["curriculum=maybe"])
     args = session.parse_args(["task=stage6", "task.crowd.count=25", "train.num_envs=8", "seed=3"])
