@@ -92,6 +92,7 @@ class NavSim:
         self._substep = 0
         self._sticky = 0
         self._crowd_track = np.zeros((0, 0, 2))
+        self._ped_xy, self._ped_xy_data = np.zeros((0, 2)), None  # mocap x, y view and its MjData
         self.layout: Layout | None = None
 
     # ------------------------------------------------------------------ building
@@ -159,6 +160,9 @@ class NavSim:
             )
             self._ped_index = _as_index(self._mocap[: self._num_peds])
             data.mocap_pos[self._ped_index, :2] = self.pedestrians.positions
+            consecutive = isinstance(self._ped_index, slice)  # then keep a view for the substeps
+            self._ped_xy = data.mocap_pos[self._ped_index, :2] if consecutive else np.zeros((0, 2))
+            self._ped_xy_data = data if consecutive else None
         self.robot.set_state(physics, layout.start)
         self.robot.reset_reference(layout.start)
         data.ctrl[:] = 0.0
@@ -200,7 +204,10 @@ class NavSim:
                 self._crowd_track = self.pedestrians.advance(
                     self._dt, 1, robot_positions=[robot], robot_radius=self.config.robot.radius)
                 self._substep = k = 0
-            data.mocap_pos[self._ped_index, :2] = self._crowd_track[k]
+            if self._ped_xy_data is data:
+                self._ped_xy[...] = self._crowd_track[k]
+            else:
+                data.mocap_pos[self._ped_index, :2] = self._crowd_track[k]
         self.robot.apply_tracking_force(physics)
         self._substep += 1
 

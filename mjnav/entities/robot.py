@@ -86,6 +86,7 @@ class OmniRobot(composer.Entity):
         self._camera = self._body.add("camera", name="follow", pos=(0, -4.0, 6.0),
                                       xyaxes=(1, 0, 0, 0, 0.83, 0.55))
         self._cache_model = None
+        self._views: tuple = (None,)  # (MjData, qpos, qvel, ctrl) of the data last tracked
         self.reset_reference(np.zeros(2))
 
     def _add_rangefinders(self, lidar: LidarConfig) -> tuple[list, list]:
@@ -228,7 +229,7 @@ class OmniRobot(composer.Entity):
         """
         if self._plan is None:
             self._bind(physics)
-            c = _STEP_POSITION_GAIN.get(int(physics.model.ptr.opt.integrator), 1.0)
+            c = _STEP_POSITION_GAIN.get(int(self._cache_model.opt.integrator), 1.0)  # read live: it may change
             self._plan = plan_substeps(self._p, self._v, self._a, self._j, self._substeps, self._dt, c)
         return self._plan
 
@@ -248,17 +249,18 @@ class OmniRobot(composer.Entity):
             ux, uy = (self._a + self._j * (t + dt / 2)).tolist()
             vx, vy, px, py = float(v[0]), float(v[1]), float(p[0]), float(p[1])
         data = physics.data.ptr
-        qvel = data.qvel
+        views = self._views
+        if views[0] is not data:  # the arrays of one MjData never move: look them up once
+            views = self._views = (data, data.qpos, data.qvel, data.ctrl)
+        _, qpos, qvel, ctrl = views
         m, kv, kp, fmax = self._gains
         d0, d1 = self._dof_list
         fx = ux + kv * (vx - qvel[d0])  # plain floats: ~3x faster than 2-element numpy arithmetic
         fy = uy + kv * (vy - qvel[d1])
         if kp:
-            qpos = data.qpos
             q0, q1 = self._qpos_list
             fx += kp * (px - qpos[q0])
             fy += kp * (py - qpos[q1])
-        ctrl = data.ctrl
         c0, c1 = self._ctrl_list
         ctrl[c0] = min(max(m * fx, -fmax), fmax)
         ctrl[c1] = min(max(m * fy, -fmax), fmax)

@@ -114,6 +114,23 @@ def test_contact_feedback_pushes_towards_the_plan():
     assert physics.data.ctrl[1] == pytest.approx(0.0)
 
 
+def test_tracking_force_goes_to_the_physics_it_is_given():
+    """Alternating between two compiled copies, each gets the force of its own velocity."""
+    arena = NavArena(ArenaConfig(size=(100.0, 100.0)), ObstacleConfig(count=0, slots=0))
+    robot = OmniRobot(ROBOT, LidarConfig())
+    arena.attach(robot)
+    stopped, moving = (mjcf.Physics.from_mjcf_model(arena.mjcf_model) for _ in range(2))
+    robot.set_state(stopped, np.zeros(2), np.zeros(2))
+    robot.set_state(moving, np.zeros(2), np.array([1.0, 0.0]))
+    expected = {id(stopped): ROBOT.mass * ROBOT.kv * 1.0, id(moving): 0.0}
+    for physics in (stopped, moving, stopped, moving):
+        robot.set_reference(np.zeros(2), np.array([1.0, 0.0]), np.zeros(2), np.zeros(2), substeps=SUBSTEPS)
+        physics.data.ctrl[:] = np.nan
+        robot.apply_tracking_force(physics)
+        assert physics.data.ctrl[0] == pytest.approx(expected[id(physics)])
+        assert physics.data.ctrl[1] == pytest.approx(0.0)
+
+
 def test_only_planar_translation():
     """The robot has exactly two slide dofs (x, y), no rotation or vertical motion, and floats."""
     robot, physics = _free_space()
