@@ -100,12 +100,32 @@ class DaqpBackend:
         """Args: a_fixed: ``(m0, n)`` constant rows; primal_tol: DAQP primal tolerance."""
         self._a_fixed = np.ascontiguousarray(a_fixed, dtype=float)
         self._tol = primal_tol
+        self._grow(0)
+
+    def _grow(self, rows: int) -> None:
+        """Buffers for up to ``rows`` polygon rows, reused by every solve (DAQP does not write to them)."""
+        m0, n = self._a_fixed.shape
+        self._rows = rows
+        self._a = np.zeros((m0 + rows, n))
+        self._a[:m0] = self._a_fixed
+        self._upper = np.zeros(n + m0 + rows)
+        self._lower = np.full(n + m0 + rows, -INF)  # polygon rows: no lower bound
+
+    def _buffers(self, problem: QpProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``A`` (fixed rows, then polygon rows) and the bounds (variables, fixed rows, polygon rows)."""
+        rows = problem.b_poly.shape[0]
+        if rows > self._rows:
+            self._grow(max(rows, 2 * self._rows))
+        (m0, n), end = self._a_fixed.shape, self._a_fixed.shape[0] + rows
+        a, upper, lower = self._a[:end], self._upper[: n + end], self._lower[: n + end]
+        a[m0:] = problem.a_poly
+        upper[:n], upper[n : n + m0], upper[n + m0 :] = problem.ub, problem.hi, problem.b_poly
+        lower[:n], lower[n : n + m0] = problem.lb, problem.lo
+        return a, upper, lower
 
     def solve(self, problem: QpProblem, warm: np.ndarray | None) -> QpSolution:
         """Solve one QP (see :class:`QpProblem`)."""
-        a = np.concatenate([self._a_fixed, problem.a_poly]) if problem.a_poly.shape[0] else self._a_fixed
-        upper = np.concatenate([problem.ub, problem.hi, problem.b_poly])
-        lower = np.concatenate([problem.lb, problem.lo, np.full(problem.b_poly.shape[0], -INF)])
+        a, upper, lower = self._buffers(problem)
         x, _, flag, info = daqp.solve(
             problem.h, problem.f, a, upper, lower, primal_start=warm, primal_tol=self._tol
         )

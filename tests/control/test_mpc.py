@@ -303,3 +303,17 @@ def test_osqp_reset_forgets_earlier_episodes() -> None:
     for state, q_s, q_l in inputs:
         a, b = used.solve(state, q_s, q_l, square), fresh.solve(state, q_s, q_l, square)
         np.testing.assert_array_equal(a.jerks, b.jerks)
+
+
+def test_daqp_buffers_reused_across_row_counts_solve_like_fresh() -> None:
+    """One DAQP MPC, fed polygons whose row counts rise and fall, plans exactly as fresh MPCs do."""
+    rng = np.random.default_rng(6)
+    used = Mpc(MpcConfig(drop_unreachable=False))
+    cases = [_random_case(rng) for _ in range(12)]
+    cases.sort(key=lambda case: len(case[3]))
+    cases = cases[::2] + cases[1::2][::-1]  # row counts rise, then fall
+    for state, q_s, q_l, poly in cases:
+        again = used.solve(state, q_s, q_l, poly)
+        fresh = Mpc(MpcConfig(drop_unreachable=False)).solve(state, q_s, q_l, poly)
+        np.testing.assert_array_equal(again.jerks, fresh.jerks)
+        assert again.rows == fresh.rows == CFG.horizon * len(poly)
