@@ -43,6 +43,7 @@ from mjnav.control.qp import (
     QpProblem,
     QpSolution,
     assemble,
+    fill_daqp,
     make_backend,
     plan_violation,
     polygon_rows,
@@ -211,6 +212,7 @@ class Mpc:
         self._weights = np.array([cfg.w_track, cfg.w_vel, cfg.w_acc, cfg.soft_weight])
         self._limits = np.array([cfg.j_max, cfg.v_max, cfg.a_max])
         self._a_fixed = self._fixed_rows()
+        self._free = np.empty((n_steps, 3, 2))  # scratch of the DAQP assembly
         self._lb = np.full(self._n, -cfg.j_max)
         self._ub = np.full(self._n, cfg.j_max)
         if cfg.soft:
@@ -290,15 +292,32 @@ class Mpc:
         cfg = self.config
         if normals is not None and cfg.solver == "osqp" and normals.shape[0] > self._backend.max_halfplanes:
             self._grow_osqp(normals.shape[0])
-        problem = self._problem(s, qs, ql, normals, offsets, stop)
-        sol = self._backend.solve(problem, warm)
+        if cfg.solver == "daqp":
+            sol, rows = self._solve_daqp(s, qs, ql, normals, offsets, stop, warm)
+        else:
+            problem = self._problem(s, qs, ql, normals, offsets, stop)
+            sol, rows = self._backend.solve(problem, warm), problem.b_poly.shape[0]
         x = sol.x
         if x is not None:
             check = normals is not None and not cfg.soft
             nrm, off = (normals, offsets) if check else (_NO_ROWS, _NO_OFFSETS)
             worst = plan_violation(s, x, cfg.horizon, cfg.t_c, self._limits, nrm, off)
             x = x if worst <= cfg.feasibility_tol else None
-        return sol, x, problem.b_poly.shape[0]
+        return sol, x, rows
+
+    def _solve_daqp(
+        self, s: Arr, qs: Arr, ql: Arr, normals: Arr | None, offsets: Arr | None, stop: bool, warm: Arr | None
+    ) -> tuple[QpSolution, int]:
+        """The :meth:`_problem` QP assembled straight into DAQP's buffers, then solved; (solution, rows)."""
+        cfg = self.config
+        nrm = _NO_ROWS if normals is None else normals
+        off = _NO_OFFSETS if offsets is None else offsets
+        buffers = self._backend.reserve(cfg.horizon * nrm.shape[0])
+        rows = fill_daqp(
+            s, qs, ql, stop, self._phi, self._gamma, self._weights, self._limits, self._lb, self._ub, nrm, off,
+            cfg.drop_unreachable, cfg.t_c, self._free, *buffers,
+        )  # fmt: skip
+        return self._backend.solve_rows(self._h_on if stop else self._h_off, rows, warm), rows
 
     def _fallback(self, s: Arr, qs: Arr, ql: Arr, normals: Arr | None, stop: bool) -> tuple[Arr, str]:
         if self._plan_age < self.config.horizon:

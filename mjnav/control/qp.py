@@ -14,7 +14,8 @@ status.
 
 * :class:`DaqpBackend` (default): dense dual active set; when given a warm start (the shifted
   previous solution, off by default for DAQP) it is passed as ``primal_start`` (DAQP derives the
-  initial active set from it), retried cold when the warm start is rejected.
+  initial active set from it), retried cold when the warm start is rejected. Its constraint
+  buffers persist; the MPC writes each QP straight into them with :func:`fill_daqp`.
 * :class:`OsqpBackend`: sparse ADMM built once with a frozen sparsity pattern: the polygon rows
   live in ``steps × max_halfplanes`` slots whose lower-triangular entries are always structural
   (unused slots are inert: zero coefficients, bounds ±inf). Only ``q``, ``l``, ``u`` and the slot
@@ -41,6 +42,7 @@ __all__ = [
     "QpSolution",
     "QuadprogBackend",
     "assemble",
+    "fill_daqp",
     "make_backend",
     "plan_violation",
     "polygon_rows",
@@ -110,27 +112,37 @@ class DaqpBackend:
         self._a[:m0] = self._a_fixed
         self._upper = np.zeros(n + m0 + rows)
         self._lower = np.full(n + m0 + rows, -INF)  # polygon rows: no lower bound
+        self._f = np.zeros(n)
 
-    def _buffers(self, problem: QpProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``A`` (fixed rows, then polygon rows) and the bounds (variables, fixed rows, polygon rows)."""
-        rows = problem.b_poly.shape[0]
+    def reserve(self, rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The buffers, with room for at least ``rows`` polygon rows, for :meth:`solve_rows`.
+
+        Returns:
+            ``A`` ``(m0 + capacity, n)`` (fixed rows first), the upper and lower bounds
+            (variables, fixed rows, polygon rows; polygon lower bounds stay ``-INF``) and ``f``.
+        """
         if rows > self._rows:
             self._grow(max(rows, 2 * self._rows))
-        (m0, n), end = self._a_fixed.shape, self._a_fixed.shape[0] + rows
-        a, upper, lower = self._a[:end], self._upper[: n + end], self._lower[: n + end]
-        a[m0:] = problem.a_poly
-        upper[:n], upper[n : n + m0], upper[n + m0 :] = problem.ub, problem.hi, problem.b_poly
-        lower[:n], lower[n : n + m0] = problem.lb, problem.lo
-        return a, upper, lower
+        return self._a, self._upper, self._lower, self._f
 
     def solve(self, problem: QpProblem, warm: np.ndarray | None) -> QpSolution:
         """Solve one QP (see :class:`QpProblem`)."""
-        a, upper, lower = self._buffers(problem)
-        x, _, flag, info = daqp.solve(
-            problem.h, problem.f, a, upper, lower, primal_start=warm, primal_tol=self._tol
-        )
+        rows = problem.b_poly.shape[0]
+        a, upper, lower, f = self.reserve(rows)
+        (m0, n), end = self._a_fixed.shape, self._a_fixed.shape[0] + rows
+        a[m0:end] = problem.a_poly
+        upper[:n], upper[n : n + m0], upper[n + m0 : n + end] = problem.ub, problem.hi, problem.b_poly
+        lower[:n], lower[n : n + m0] = problem.lb, problem.lo
+        f[:] = problem.f
+        return self.solve_rows(problem.h, rows, warm)
+
+    def solve_rows(self, h: np.ndarray, rows: int, warm: np.ndarray | None) -> QpSolution:
+        """Solve the QP held in the buffers (see :meth:`reserve`) with its first ``rows`` polygon rows."""
+        end = self._a_fixed.shape[0] + rows
+        a, upper, lower = self._a[:end], self._upper[: self._f.shape[0] + end], self._lower[: self._f.shape[0] + end]
+        x, _, flag, info = daqp.solve(h, self._f, a, upper, lower, primal_start=warm, primal_tol=self._tol)
         if flag == -6 and warm is not None:  # overdetermined initial working set: retry cold
-            x, _, flag, info = daqp.solve(problem.h, problem.f, a, upper, lower, primal_tol=self._tol)
+            x, _, flag, info = daqp.solve(h, self._f, a, upper, lower, primal_tol=self._tol)
         ok = flag in (1, 2)
         return QpSolution(np.asarray(x) if ok else None, ok, f"daqp:{flag}", int(info["iterations"]))
 
@@ -386,14 +398,24 @@ def assemble(
         the free response ``(N, 3, 2)``.
     """
     steps = phi.shape[0]
+    f, lo, hi, free = np.empty(n), np.empty(4 * steps), np.empty(4 * steps), np.empty((steps, 3, 2))
+    _assemble_into(s, qs, ql, stop, phi, gamma, weights, limits, f, lo, hi, free)
+    return f, lo, hi, free
+
+
+@njit(cache=True)
+def _assemble_into(
+    s: np.ndarray, qs: np.ndarray, ql: np.ndarray, stop: bool, phi: np.ndarray, gamma: np.ndarray,
+    weights: np.ndarray, limits: np.ndarray, f: np.ndarray, lo: np.ndarray, hi: np.ndarray, free: np.ndarray,
+) -> None:  # pragma: no cover - numba
+    """:func:`assemble` into given arrays (``f`` ``(n,)``, ``lo``/``hi`` ``(4N,)``, ``free`` ``(N, 3, 2)``)."""
+    steps, n = phi.shape[0], f.shape[0]
     gp, gv, ga = gamma[0], gamma[1], gamma[2]
-    free = np.empty((steps, 3, 2))
     for k in range(steps):
         for d in range(2):
             for r in range(3):
                 free[k, r, d] = phi[k, r, 0] * s[0, d] + phi[k, r, 1] * s[1, d] + phi[k, r, 2] * s[2, d]
-    f = np.zeros(n)
-    lo, hi = np.empty(4 * steps), np.empty(4 * steps)
+    f[:] = 0.0
     last = steps - 1
     for d in range(2):
         for i in range(steps):
@@ -411,7 +433,6 @@ def assemble(
             )
     if n > 2 * steps:
         f[n - 1] = weights[3]
-    return f, lo, hi, free
 
 
 @njit(cache=True)
@@ -447,10 +468,22 @@ def polygon_rows(
     Returns:
         ``rows`` ``(R, n)``, right-hand sides, slots, and the normals' x and y components.
     """
-    steps, count = free.shape[0], normals.shape[0]
-    rows = np.zeros((steps * count, n))
-    rhs, nx, ny = np.empty(steps * count), np.empty(steps * count), np.empty(steps * count)
-    slot = np.empty(steps * count, dtype=np.int64)
+    size = free.shape[0] * normals.shape[0]
+    rows, rhs, nx, ny = np.empty((size, n)), np.empty(size), np.empty(size), np.empty(size)
+    slot = np.empty(size, dtype=np.int64)
+    r = _polygon_rows_into(s, free, normals, offsets, drop, gp, limits, dt, slots, rows, rhs, slot, nx, ny)
+    return rows[:r], rhs[:r], slot[:r], nx[:r], ny[:r]
+
+
+@njit(cache=True)
+def _polygon_rows_into(
+    s: np.ndarray, free: np.ndarray, normals: np.ndarray, offsets: np.ndarray, drop: bool, gp: np.ndarray,
+    limits: np.ndarray, dt: float, slots: int, rows: np.ndarray, rhs: np.ndarray, slot: np.ndarray,
+    nx: np.ndarray, ny: np.ndarray,
+) -> int:  # pragma: no cover - numba
+    """:func:`polygon_rows` into the first rows of given arrays (``N·K`` long, ``rows`` ``(N·K, n)``;
+    ``slot``, ``nx`` and ``ny`` may be empty: not recorded); returns the number of rows kept."""
+    steps, count, n = free.shape[0], normals.shape[0], rows.shape[1]
     j_max, v_max, a_max = limits[0], limits[1], limits[2]
     per_step = v_max * dt + a_max * dt * dt / 2.0 + j_max * dt**3 / 6.0
     lo_box, hi_box = np.empty(2), np.empty(2)
@@ -468,11 +501,45 @@ def polygon_rows(
             top = (a * hi_box[0] if a > 0 else a * lo_box[0]) + (b * hi_box[1] if b > 0 else b * lo_box[1])
             if drop and top < offsets[j] - 1e-9:
                 continue
+            rows[r, :] = 0.0
             rows[r, :steps][: k + 1] = a * gp[k, : k + 1]
             rows[r, steps : 2 * steps][: k + 1] = b * gp[k, : k + 1]
             if n > 2 * steps:
                 rows[r, n - 1] = -1.0
             rhs[r] = offsets[j] - a * free[k, 0, 0] - b * free[k, 0, 1]
-            slot[r], nx[r], ny[r] = k * slots + j, a, b
+            if slot.shape[0]:
+                slot[r], nx[r], ny[r] = k * slots + j, a, b
             r += 1
-    return rows[:r], rhs[:r], slot[:r], nx[:r], ny[:r]
+    return r
+
+
+@njit(cache=True)
+def fill_daqp(
+    s: np.ndarray, qs: np.ndarray, ql: np.ndarray, stop: bool, phi: np.ndarray, gamma: np.ndarray,
+    weights: np.ndarray, limits: np.ndarray, lb: np.ndarray, ub: np.ndarray, normals: np.ndarray,
+    offsets: np.ndarray, drop: bool, dt: float, free: np.ndarray, a: np.ndarray, upper: np.ndarray,
+    lower: np.ndarray, f: np.ndarray,
+) -> int:  # pragma: no cover - numba
+    """:func:`assemble` and :func:`polygon_rows` straight into :class:`DaqpBackend`'s buffers.
+
+    One call instead of two kernels, nine returned arrays and the copies into the solver's
+    buffers (see :meth:`DaqpBackend.reserve`); the values are the same.
+
+    Args:
+        s, qs, ql, stop, phi, gamma, weights, limits: As for :func:`assemble`.
+        lb: ``(n,)`` variable lower bounds; ub: ``(n,)`` upper bounds.
+        normals, offsets, drop, dt: As for :func:`polygon_rows` (``gp = gamma[0]``).
+        free: ``(N, 3, 2)`` scratch for the free response.
+        a, upper, lower, f: The backend's buffers, with room for ``N·K`` polygon rows.
+
+    Returns:
+        The number of polygon rows kept.
+    """
+    n, m0 = f.shape[0], 4 * phi.shape[0]
+    upper[:n], lower[:n] = ub, lb
+    _assemble_into(s, qs, ql, stop, phi, gamma, weights, limits, f, lower[n : n + m0], upper[n : n + m0], free)
+    none = np.empty(0, dtype=np.int64)
+    empty = np.empty(0)
+    return _polygon_rows_into(
+        s, free, normals, offsets, drop, gamma[0], limits, dt, 0, a[m0:], upper[n + m0 :], none, empty, empty
+    )

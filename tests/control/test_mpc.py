@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mjnav.control.mpc import Mpc, MpcConfig, prediction_matrices, simulate_triple_integrator
-from mjnav.geometry.polygon import orient_clockwise, points_in_convex
+from mjnav.control.qp import INF, fill_daqp
+from mjnav.geometry.polygon import halfplanes, orient_clockwise, points_in_convex
 from mjnav.geometry.region import compute_region
 from tests.geometry.scans import ANGLES, random_scan
 
@@ -317,3 +318,27 @@ def test_daqp_buffers_reused_across_row_counts_solve_like_fresh() -> None:
         fresh = Mpc(MpcConfig(drop_unreachable=False)).solve(state, q_s, q_l, poly)
         np.testing.assert_array_equal(again.jerks, fresh.jerks)
         assert again.rows == fresh.rows == CFG.horizon * len(poly)
+
+
+@pytest.mark.parametrize("soft", [False, True])
+@pytest.mark.parametrize("drop", [False, True])
+def test_daqp_fused_assembly_writes_the_generic_problem(soft, drop) -> None:
+    """``fill_daqp`` leaves in DAQP's buffers exactly the QP that ``assemble`` + ``polygon_rows`` build,
+    also over stale rows from a larger earlier polygon."""
+    rng = np.random.default_rng(11)
+    mpc = Mpc(MpcConfig(soft=soft, drop_unreachable=drop))
+    backend, (m0, n) = mpc._backend, mpc._a_fixed.shape
+    cases = sorted((_random_case(rng) for _ in range(6)), key=lambda case: -len(case[3]))
+    for state, q_s, q_l, poly in cases:  # falling polygon sizes: every fill lands on stale rows
+        normals, offsets = halfplanes(poly)
+        for stop in (False, True):
+            problem = mpc._problem(state, q_s, q_l, normals, offsets, stop)
+            a, upper, lower, f = backend.reserve(CFG.horizon * len(poly))
+            rows = fill_daqp(state, q_s, q_l, stop, mpc._phi, mpc._gamma, mpc._weights, mpc._limits,
+                             mpc._lb, mpc._ub, normals, offsets, drop, CFG.t_c, mpc._free, a, upper, lower, f)
+            assert rows == len(problem.b_poly)
+            np.testing.assert_array_equal(f, problem.f)
+            np.testing.assert_array_equal(a[: m0 + rows], np.vstack([mpc._a_fixed, problem.a_poly]))
+            np.testing.assert_array_equal(upper[: n + m0 + rows], np.concatenate([problem.ub, problem.hi, problem.b_poly]))
+            np.testing.assert_array_equal(lower[: n + m0 + rows],
+                                          np.concatenate([problem.lb, problem.lo, np.full(rows, -INF)]))
