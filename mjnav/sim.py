@@ -88,6 +88,7 @@ class NavSim:
         self._model = None
         self._segments = wall_segments(config.arena.size)
         self._radii = np.zeros(0)
+        self._circles = np.zeros((0, 3))  # [x, y, r] rows for the LiDAR, refilled at every scan
         self._num_peds = 0
         self._substep = 0
         self._sticky = 0
@@ -152,6 +153,8 @@ class NavSim:
         self.crowd.set_radii(physics, layout.ped_radii)
         self._num_peds = len(layout.ped_radii)
         self._radii = np.ascontiguousarray(layout.ped_radii, dtype=np.float64)
+        self._circles = np.zeros((self._num_peds, 3))
+        self._circles[:, 2] = self._radii
         if self._num_peds:
             hx, hy = 0.5 * cfg.arena.size[0], 0.5 * cfg.arena.size[1]
             self.pedestrians.reset(
@@ -245,9 +248,13 @@ class NavSim:
 
     def pedestrian_circles(self) -> np.ndarray:
         """(P, 3) ``[x, y, r]`` of the active pedestrians, metres."""
-        if not self._num_peds:
-            return np.zeros((0, 3))
-        return np.ascontiguousarray(np.column_stack([self.pedestrians.positions, self._radii]))
+        return self._current_circles().copy()
+
+    def _current_circles(self) -> np.ndarray:
+        """The reused ``(P, 3)`` circles buffer, refreshed with the current positions."""
+        if self._num_peds:
+            self._circles[:, :2] = self.pedestrians.positions
+        return self._circles
 
     @property
     def segments(self) -> np.ndarray:
@@ -269,7 +276,7 @@ class NavSim:
         """
         lidar = self.lidar if backend is None else self.lidars[backend]
         origin = physics.data.ptr.qpos[self._qpos]
-        circles = self.pedestrian_circles() if lidar.name == "analytic" else None
+        circles = self._current_circles() if lidar.name == "analytic" else None
         ranges = lidar.scan(physics, origin, self._segments, circles)
         if not noise:
             return ranges
