@@ -87,7 +87,6 @@ class NavSim:
         self._dt = config.timing.physics_timestep
         self._model = None
         self._segments = wall_segments(config.arena.size)
-        self._radii = np.zeros(0)
         self._circles = np.zeros((0, 3))  # [x, y, r] rows for the LiDAR, refilled at every scan
         self._num_peds = 0
         self._substep = 0
@@ -152,9 +151,8 @@ class NavSim:
         self.arena.set_obstacles(physics, layout.obstacle_shapes, layout.obstacle_poses)
         self.crowd.set_radii(physics, layout.ped_radii)
         self._num_peds = len(layout.ped_radii)
-        self._radii = np.ascontiguousarray(layout.ped_radii, dtype=np.float64)
         self._circles = np.zeros((self._num_peds, 3))
-        self._circles[:, 2] = self._radii
+        self._circles[:, 2] = layout.ped_radii
         if self._num_peds:
             hx, hy = 0.5 * cfg.arena.size[0], 0.5 * cfg.arena.size[1]
             self.pedestrians.reset(

@@ -151,7 +151,7 @@ class _Recorder:
         p, v, _ = self.task.sim.robot_state(self.env.physics)
         self.positions.append(p)
         self.velocities.append(v)
-        self.peds.append(self.task.sim.pedestrian_circles().copy())
+        self.peds.append(self.task.sim.pedestrian_circles())  # a new array each call
         obst, ped = _clearances(p, self.task.sim, self.radius)
         self.obst.append(obst)
         self.ped.append(ped)
