@@ -93,6 +93,7 @@ class NavSim:
         self._sticky = 0
         self._crowd_track = np.zeros((0, 0, 2))
         self._ped_xy, self._ped_xy_data = np.zeros((0, 2)), None  # mocap x, y view and its MjData
+        self._state_views: tuple = (None, None, None)  # (MjData, qpos view, qvel view) of the robot
         self.layout: Layout | None = None
 
     # ------------------------------------------------------------------ building
@@ -176,13 +177,19 @@ class NavSim:
         return layout
 
     # ------------------------------------------------------------------ stepping
-    def apply_command(self, physics: mjcf.Physics, jerk: np.ndarray) -> None:
+    def apply_command(self, physics: mjcf.Physics, jerk: np.ndarray,
+                      state: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> None:
         """Starts a control period: reference from the robot state under ``jerk`` (2,), m/s³.
 
         Also moves the crowd through the whole period in one call (pedestrians that react to
         the robot see its planned position at each substep, which is its free-space position).
+
+        Args:
+            physics: The physics.
+            jerk: (2,) jerk for the period, m/s³.
+            state: :meth:`robot_state` of this moment if the caller already has it (read otherwise).
         """
-        p, v, a = self.robot_state(physics)
+        p, v, a = self.robot_state(physics) if state is None else state
         substeps = self.config.timing.substeps
         self.robot.set_reference(p, v, a, jerk, substeps=substeps)
         self._substep, self._sticky = 0, 0
@@ -242,7 +249,12 @@ class NavSim:
     def robot_state(self, physics: mjcf.Physics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p, v, a), each (2,): MuJoCo position and velocity, reference acceleration (MPC state)."""
         data = physics.data.ptr
-        return data.qpos[self._qpos].copy(), data.qvel[self._qvel].copy(), self.robot.acceleration
+        views = self._state_views
+        if views[0] is not data:  # a slice of an MjData array is a view that never moves
+            if not (isinstance(self._qpos, slice) and isinstance(self._qvel, slice)):
+                return data.qpos[self._qpos].copy(), data.qvel[self._qvel].copy(), self.robot.acceleration
+            views = self._state_views = (data, data.qpos[self._qpos], data.qvel[self._qvel])
+        return views[1].copy(), views[2].copy(), self.robot.acceleration
 
     def pedestrian_circles(self) -> np.ndarray:
         """(P, 3) ``[x, y, r]`` of the active pedestrians, metres."""

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
@@ -49,7 +50,10 @@ from mjnav.geometry.polygon import (
 from mjnav.geometry.region import Region
 from mjnav.schema import check as _check
 
-__all__ = ["ActionConfig", "ActionPoints", "boundary_distance", "goal_inside", "map_action", "radii", "reach_distance"]
+__all__ = [
+    "ActionConfig", "ActionPoints", "boundary_distance", "goal_inside", "map_action", "map_action_values", "radii",
+    "reach_distance",
+]
 
 TWO_PI = 2.0 * math.pi
 
@@ -159,8 +163,24 @@ def map_action(
     Raises:
         ValueError: On badly shaped or non-finite inputs, or an action outside [0, 1].
     """
+    return map_action_values(_validate(action01, velocity, acceleration, goal_rel), region, config)
+
+
+def map_action_values(values: Sequence[float], region: Region, config: ActionConfig | None = None) -> ActionPoints:
+    """:func:`map_action` on ten plain floats, without its input checks.
+
+    For callers that have already checked the inputs (the task checks them once per step).
+
+    Args:
+        values: ``α_s, β_s, α_l, β_l`` (each in [0, 1]), ``vx, vy`` (m/s), ``ax, ay`` (m/s²) and
+            ``gx, gy`` (goal relative to the robot, metres), all finite Python floats.
+        region: The current :class:`~mjnav.geometry.region.Region`.
+        config: Mapping parameters; defaults to :class:`ActionConfig()`.
+
+    Returns:
+        The :class:`ActionPoints`.
+    """
     cfg = config if config is not None else _DEFAULT
-    values = _validate(action01, velocity, acceleration, goal_rel)
     out = _map_kernel(
         *values, region.success, region.normals, region.offsets, region.boundary_xy,
         cfg.heading == "velocity", cfg.long_circle == "code", cfg.jerk_max * math.sqrt(2.0), cfg.t_c,

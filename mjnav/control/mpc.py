@@ -270,6 +270,40 @@ class Mpc:
         """
         start = time.perf_counter()
         s, qs, ql, normals, offsets = _validate(state, q_s, q_l, polygon, halfplanes)
+        return self._solve(s, qs, ql, normals, offsets, goal_inside, start)
+
+    def solve_unchecked(
+        self,
+        state: np.ndarray,
+        q_s: np.ndarray,
+        q_l: np.ndarray,
+        halfplanes: tuple[np.ndarray, np.ndarray] | None,
+        goal_inside: bool = False,
+    ) -> MpcResult:
+        """:meth:`solve` without its input checks, for callers whose inputs are valid by construction.
+
+        The task uses it: its state comes from the physics (checked once per step), the
+        references from the action mapping and the halfplanes from a successful region.
+
+        Args:
+            state: ``(3, 2)`` float64 rows p, v, a, all finite.
+            q_s: ``(2,)`` float64 short-term reference, finite, metres.
+            q_l: ``(2,)`` float64 long-term reference, finite, metres.
+            halfplanes: ``(normals (K, 2), offsets (K,))`` of a convex polygon with K >= 3, or
+                ``None`` to plan without the region constraint.
+            goal_inside: As for :meth:`solve`.
+
+        Returns:
+            The :class:`MpcResult`, exactly as :meth:`solve` gives it for the same inputs.
+        """
+        start = time.perf_counter()
+        normals, offsets = (None, None) if halfplanes is None else halfplanes
+        return self._solve(state, q_s, q_l, normals, offsets, goal_inside, start)
+
+    def _solve(
+        self, s: Arr, qs: Arr, ql: Arr, normals: Arr | None, offsets: Arr | None, goal_inside: bool, start: float
+    ) -> MpcResult:
+        """:meth:`solve` after its checks; ``start`` is the ``perf_counter`` time the call began."""
         cfg = self.config
         self.stats["solves"] += 1
         self._plan_age += 1

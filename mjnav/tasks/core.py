@@ -17,7 +17,7 @@ import typing
 
 import numpy as np
 
-from mjnav.control.action import map_action
+from mjnav.control.action import map_action_values
 from mjnav.control.mpc import Mpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, compute_region
@@ -124,6 +124,7 @@ class NavCore:
     def reset(self, goal: np.ndarray, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """Start an episode; returns the first (stacked) observation."""
         self.goal = np.asarray(goal, dtype=np.float64).copy()
+        self._goal = tuple(self.goal.tolist())  # plain floats for the per-step arithmetic
         self.steps = 0
         self.outcome = Outcome.RUNNING
         self._mpc.reset()
@@ -156,16 +157,19 @@ class NavCore:
             ValueError: If the action has the wrong shape or a non-finite value.
         """
         action = np.asarray(action, dtype=np.float64).reshape(-1)
-        if action.shape != (4,) or not np.isfinite(action).all():
+        if action.shape != (4,) or not all(map(math.isfinite, action.tolist())):
             raise ValueError(f"action must be 4 finite values, got {action!r}")
-        goal_rel = self.goal - position
+        (px, py), (gx, gy) = position.tolist(), self._goal
+        motion = [*velocity.tolist(), *accel.tolist(), gx - px, gy - py]
+        if not all(map(math.isfinite, motion)):  # checked once here, so the action layer need not
+            raise ValueError(f"robot state is not finite: p={position}, v={velocity}, a={accel}")
         t0 = time.perf_counter()
-        points = map_action(sigmoid(action), self.region, velocity, accel, goal_rel, self.config.action)
+        points = map_action_values(sigmoid(action).tolist() + motion, self.region, self.config.action)
         region = self.region
-        polygon, planes = (region.vertices, (region.normals, region.offsets)) if region.success else (None, None)
+        planes = (region.normals, region.offsets) if region.success else None
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
-        result = self._mpc.solve(state, points.q_s, points.q_l_ref, polygon, points.goal_inside, planes)
+        result = self._mpc.solve_unchecked(state, points.q_s, points.q_l_ref, planes, points.goal_inside)
         self.timers["action"] += t1 - t0
         self.timers["mpc"] += time.perf_counter() - t1
         plan_ok = result.fallback is None
@@ -230,7 +234,8 @@ class NavCore:
         self.steps += 1
         self.counters["steps"] += 1
         pending, prev = self._pending, self._prev
-        distance = math.hypot(*(self.goal - position))
+        (px, py), (gx, gy) = position.tolist(), self._goal
+        distance = math.hypot(gx - px, gy - py)
         min_scan = max(float(scan.min()) - self._inflation, 0.0)
         collision = contact if self.config.collision == "contact" else min_scan <= 0.0
         success = distance < self.config.reward.goal_tolerance and not collision

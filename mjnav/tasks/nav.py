@@ -90,13 +90,13 @@ class CrowdNavTask(composer.Task):
     def before_step(self, physics, action, random_state) -> None:
         """Turn the action into a jerk command for the coming control period."""
         del random_state
-        p, v, a = self.sim.robot_state(physics)
+        state = p, v, a = self.sim.robot_state(physics)
         if self.planner is None:
             jerk = self.core.plan(action, p, v, a)
         else:
             jerk = self.core.plan_with(self.planner, self._scan, p, v, a)
         self._t_physics = time.perf_counter()  # the command starts the period (crowd, tracking)
-        self.sim.apply_command(physics, jerk)
+        self.sim.apply_command(physics, jerk, state)
 
     def before_substep(self, physics, action, random_state) -> None:
         """Move the pedestrians and apply the tracking force."""
