@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 import shapely
 
-from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, map_action, radii, reach_distance
+from mjnav.control.action import (
+    ActionConfig,
+    boundary_distance,
+    goal_inside,
+    map_action,
+    map_action_values,
+    radii,
+    reach_distance,
+)
 from mjnav.geometry.polygon import points_in_convex, points_in_polygon
 from mjnav.geometry.region import compute_region
 from tests.geometry.scans import ANGLES, random_scan
@@ -174,3 +182,23 @@ def test_invalid_inputs_raise():
         map_action(np.full(4, 0.5), region, np.array([np.nan, 0.0]), np.zeros(2), np.ones(2))
     with pytest.raises(ValueError, match="goal_rel"):
         map_action(np.full(4, 0.5), region, np.zeros(2), np.zeros(2), np.ones(3))
+
+
+def test_unchecked_mapping_is_map_action_on_floats():
+    """map_action_values on the ten floats gives exactly map_action's points, on both region kinds."""
+    rng = np.random.default_rng(8)
+    kinds = set()
+    for k in range(60):
+        ranges = random_scan(rng)
+        if k % 3 == 0:
+            ranges[rng.integers(0, 360)] = 0.05
+        region = compute_region(ranges, ANGLES)
+        kinds.add(region.success)
+        act, v, a, goal = rng.uniform(0, 1, 4), rng.uniform(-2.5, 2.5, 2), rng.uniform(-4, 4, 2), rng.uniform(-6, 6, 2)
+        checked = map_action(act, region, v, a, goal)
+        unchecked = map_action_values([*act.tolist(), *v.tolist(), *a.tolist(), *goal.tolist()], region)
+        for name in ("q_s", "q_l", "q_l_ref"):
+            np.testing.assert_array_equal(getattr(unchecked, name), getattr(checked, name))
+        assert (unchecked.theta_s, unchecked.d_theta_l, unchecked.goal_inside) == (
+            checked.theta_s, checked.d_theta_l, checked.goal_inside)
+    assert kinds == {True, False}

@@ -283,6 +283,25 @@ def test_region_halfplanes_give_the_same_plan():
         assert plain.fallback == given.fallback
 
 
+def test_unchecked_solve_is_solve():
+    """solve_unchecked with the region's half-planes (or none) plans exactly as solve, fallbacks included."""
+    rng = np.random.default_rng(9)
+    fallbacks = set()
+    for k in range(40):
+        state, q_s, q_l, polygon = _random_case(rng)
+        if k % 4 == 0:
+            state[1] = rng.uniform(-9, 9, 2)  # often beyond the limits: the fallback ladder
+        planes = halfplanes(polygon) if k % 5 else None
+        a, b = Mpc(), Mpc()
+        checked = a.solve(state, q_s, q_l, polygon if planes is not None else None, halfplanes=planes)
+        unchecked = b.solve_unchecked(state, q_s, q_l, planes)
+        np.testing.assert_array_equal(unchecked.jerks, checked.jerks)
+        np.testing.assert_array_equal(unchecked.positions, checked.positions)
+        assert unchecked.fallback == checked.fallback and a.stats == b.stats
+        fallbacks.add(checked.fallback)
+    assert None in fallbacks and len(fallbacks) > 1
+
+
 def test_halfplanes_must_match_the_polygon():
     """Half-planes with a row count other than the polygon's vertex count are rejected."""
     normals, offsets = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]), np.ones(3)

@@ -74,6 +74,14 @@ def test_nan_action_is_rejected(stage4: NavGymEnv) -> None:
         stage4.step(np.array([0, np.nan, 0, 0], dtype=np.float32))
 
 
+def test_non_finite_robot_state_is_rejected(stage4: NavGymEnv) -> None:
+    """A NaN velocity (diverged physics) raises a clear ValueError before the action layer."""
+    stage4.reset(seed=1)
+    core = stage4.task.core
+    with pytest.raises(ValueError, match="robot state is not finite"):
+        core.plan(np.zeros(4), np.zeros(2), np.array([np.nan, 0.0]), np.zeros(2))
+
+
 def test_same_seed_same_rollout() -> None:
     """Two environments with the same seed give bit-identical observations and rewards."""
     runs = []
