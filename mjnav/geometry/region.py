@@ -42,7 +42,7 @@ from numba import njit
 from mjnav.geometry.polygon import graham_scan, monotone_chain
 from mjnav.schema import check as _check
 
-__all__ = ["STATUS_NAMES", "Region", "RegionConfig", "compute_region", "warm_up"]
+__all__ = ["STATUS_NAMES", "Region", "RegionConfig", "RegionFinder", "compute_region", "warm_up"]
 
 STATUS_NAMES = (
     "ok",
@@ -139,7 +139,46 @@ def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig 
     """
     cfg = config if config is not None else _DEFAULT
     r, th = _validate(ranges, angles, cfg.num_points)
-    cos, sin, ordered = _trig(th)
+    return _region(r, th, *_trig(th), cfg)
+
+
+class RegionFinder:
+    """:func:`compute_region` for one fixed beam layout, as a LiDAR scanning every step uses it.
+
+    The angles are checked and their trigonometry computed once; each call then checks only
+    the ranges. Results equal :func:`compute_region`'s for the same scan.
+    """
+
+    def __init__(self, angles: np.ndarray, config: RegionConfig | None = None) -> None:
+        """Args: angles: ``(n,)`` beam angles, radians (robot frame); config: region parameters.
+
+        Raises:
+            ValueError: On fewer than ``num_points`` beams or non-finite angles.
+        """
+        self.config = config if config is not None else _DEFAULT
+        _, th = _validate(np.zeros(np.size(angles)), angles, self.config.num_points)
+        self.angles = th.copy()
+        cos, sin, ordered = _trig(self.angles)
+        self._trig = (cos.copy(), sin.copy(), ordered)
+
+    def __call__(self, ranges: np.ndarray) -> Region:
+        """The region of one scan of ``(n,)`` ranges, metres (see :func:`compute_region`).
+
+        Raises:
+            ValueError: On a shape other than the angles' or non-finite ranges.
+        """
+        r = np.asarray(ranges, dtype=np.float64).ravel()
+        if r.shape != self.angles.shape:
+            raise ValueError(f"ranges: expected {self.angles.shape[0]} beams, got {r.shape}")
+        if not math.isfinite(float(r.sum())):
+            _validate(r, self.angles, self.config.num_points)  # raises, naming the beams
+        return _region(r, self.angles, *self._trig, self.config)
+
+
+def _region(
+    r: np.ndarray, th: np.ndarray, cos: np.ndarray, sin: np.ndarray, ordered: bool, cfg: RegionConfig
+) -> Region:
+    """The GALAXY pipeline on checked ranges and angles with their trigonometry."""
     status, verts, normals, offsets, polar, xy = _galaxy_scan(
         r, cos, sin, cfg.max_range, cfg.inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points,
         ordered,

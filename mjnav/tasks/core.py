@@ -20,7 +20,7 @@ import numpy as np
 from mjnav.control.action import map_action_values
 from mjnav.control.mpc import Mpc
 from mjnav.geometry.raycast import beam_angles
-from mjnav.geometry.region import Region, compute_region
+from mjnav.geometry.region import Region, RegionFinder
 from mjnav.tasks import observation as obs_lib
 from mjnav.tasks import reward as reward_lib
 
@@ -114,6 +114,7 @@ class NavCore:
         self.config = config
         self._inflation = config.region.inflation
         self._angles = beam_angles(config.lidar.beams)
+        self._find_region = RegionFinder(self._angles, config.region)
         self._mpc = Mpc(config.mpc)
         self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points)
         self._reward_terms = reward_lib.weighted_terms(config.reward)
@@ -136,7 +137,7 @@ class NavCore:
         return self._stack.reset(polygon, state)
 
     def _region(self, scan: np.ndarray) -> Region:
-        region = compute_region(scan, self._angles, self.config.region)
+        region = self._find_region(scan)
         if not region.success:
             self.counters["region_failures"] += 1
         return region

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
 from mjnav.geometry.polygon import is_clockwise, is_convex
-from mjnav.geometry.region import Region, RegionConfig, compute_region
+from mjnav.geometry.region import Region, RegionConfig, RegionFinder, compute_region
 from tests.geometry.scans import ANGLES, cast, random_scan
 
 CFG = RegionConfig()
@@ -152,6 +152,37 @@ def test_non_finite_ranges_raise_naming_the_beams():
     ranges[[7, 300]] = [np.nan, np.inf]
     with pytest.raises(ValueError, match=r"\[7, 300\]"):
         compute_region(ranges, ANGLES)
+
+
+def test_region_finder_equals_compute_region():
+    """A RegionFinder for the beam layout gives compute_region's regions, failures included."""
+    rng = np.random.default_rng(12)
+    cfg = RegionConfig(inflation=0.4)
+    find = RegionFinder(ANGLES, cfg)
+    statuses = set()
+    for k in range(80):
+        ranges = random_scan(rng)
+        if k % 4 == 0:
+            ranges[rng.integers(0, 360)] = 0.1
+        a, b = find(ranges), compute_region(ranges, ANGLES, cfg)
+        for name in ("vertices", "normals", "offsets", "boundary", "boundary_xy"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert (a.success, a.status) == (b.success, b.status)
+        statuses.add(a.status)
+    assert "ok" in statuses and len(statuses) > 1
+
+
+def test_region_finder_rejects_bad_scans():
+    """Non-finite ranges raise naming the beams; a scan of another length or bad angles raise too."""
+    find = RegionFinder(ANGLES)
+    ranges = np.full(360, 5.0)
+    ranges[[7, 300]] = [np.nan, np.inf]
+    with pytest.raises(ValueError, match=r"\[7, 300\]"):
+        find(ranges)
+    with pytest.raises(ValueError, match="beams"):
+        find(np.full(359, 5.0))
+    with pytest.raises(ValueError, match="angles"):
+        RegionFinder(np.where(ANGLES > 1.0, np.nan, ANGLES))
 
 
 def test_out_of_range_readings_are_clipped():
