@@ -94,9 +94,9 @@ class ActionConfig:
         )
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(eq=False, slots=True)
 class ActionPoints:
-    """Reference points of one action (robot frame).
+    """Reference points of one action (robot frame; made every step, so not frozen: treat as read-only).
 
     Attributes:
         q_s: ``(2,)`` short-term point Q_s, metres.

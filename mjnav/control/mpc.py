@@ -119,9 +119,9 @@ class MpcConfig:
         _check(self.max_halfplanes >= 3, "max_halfplanes", "must be >= 3")
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(eq=False, slots=True)
 class MpcResult:
-    """One MPC step (robot frame, SI units).
+    """One MPC step (robot frame, SI units; made every step, so not frozen: treat as read-only).
 
     Attributes:
         u0: ``(2,)`` jerk to apply for one period, m/s³.

@@ -83,9 +83,9 @@ class QpProblem:
     ny: np.ndarray
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(eq=False, slots=True)
 class QpSolution:
-    """Backend result: ``x`` is ``None`` unless ``ok``."""
+    """Backend result: ``x`` is ``None`` unless ``ok`` (made every solve, so not frozen: read-only by convention)."""
 
     x: np.ndarray | None
     ok: bool

@@ -92,9 +92,9 @@ class RegionConfig:
         _check(math.isfinite(self.push) and 0.0 <= self.push < 1e-3, "push", "must be in [0, 1e-3)")
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
+@dataclasses.dataclass(eq=False, slots=True)
 class Region:
-    """Output of :func:`compute_region` (robot frame, metres).
+    """Output of :func:`compute_region` (robot frame, metres; made every step, so not frozen: read-only by convention).
 
     Attributes:
         vertices: ``(K, 2)`` convex polygon, clockwise, starting at the smallest polar angle;

@@ -23,9 +23,9 @@ TERMS = (
 _DISABLED = {"r_t1": (), "r_t2": ("change",), "r_t3": ("feasibility",), "r_t4": ("change", "feasibility")}
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(slots=True)
 class RewardInputs:
-    """What one control step hands to the reward.
+    """What one control step hands to the reward (made every step, so not frozen: treat as read-only).
 
     Attributes:
         success: Goal reached this step (distance < goal tolerance).
