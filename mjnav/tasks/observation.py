@@ -153,12 +153,18 @@ def _state_kernel(
 
 
 class FrameStack:
-    """Keeps the last ``frames`` polygon and state blocks and lays them out as spec §6."""
+    """Keeps the last ``frames`` polygon and state blocks and lays them out as spec §6.
+
+    The blocks live in the float32 observation itself (polygon slots, then state slots), so a
+    push shifts two slices and writes the new frame: no per-step concatenation or cast.
+    """
 
     def __init__(self, frames: int = 3, points: int = 60) -> None:
         """Create an empty stack for ``frames`` frames of ``points`` boundary points."""
-        self._polygons = np.zeros((frames, 2 * points))
-        self._states = np.zeros((frames, STATE_SIZE))
+        self._frames, self._poly = frames, 2 * points
+        self._obs = np.zeros(frames * (2 * points + STATE_SIZE), dtype=np.float32)
+        self._polygons = self._obs[: frames * self._poly].reshape(frames, self._poly)  # views
+        self._states = self._obs[frames * self._poly :].reshape(frames, STATE_SIZE)
 
     def reset(self, polygon: np.ndarray, state: np.ndarray) -> np.ndarray:
         """Fill every slot with the first frame and return the observation."""
@@ -168,12 +174,13 @@ class FrameStack:
 
     def push(self, polygon: np.ndarray, state: np.ndarray) -> np.ndarray:
         """Drop the oldest frame, append this one and return the observation."""
-        self._polygons[:-1] = self._polygons[1:]
-        self._states[:-1] = self._states[1:]
-        self._polygons[-1] = polygon
-        self._states[-1] = state
-        return self.observation()
+        obs, old, split = self._obs, self._poly * (self._frames - 1), self._poly * self._frames
+        obs[:old] = obs[self._poly : split]  # overlapping slices: numpy copies as if buffered
+        obs[old:split] = polygon
+        obs[split : -STATE_SIZE] = obs[split + STATE_SIZE :]
+        obs[-STATE_SIZE:] = state
+        return obs.copy()
 
     def observation(self) -> np.ndarray:
-        """Stacked observation, float32: polygon blocks oldest first, then state blocks."""
-        return np.concatenate([self._polygons.ravel(), self._states.ravel()]).astype(np.float32)
+        """Stacked observation, float32: polygon blocks oldest first, then state blocks (a copy)."""
+        return self._obs.copy()
