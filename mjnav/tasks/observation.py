@@ -38,9 +38,9 @@ POLYGON_SIZE = 120
 STATE_SIZE = 13
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(eq=False)
 class Plan:
-    """The last action and MPC plan, as the observation needs them.
+    """The last action and MPC plan, as the observation needs them (made every step: read-only by convention).
 
     Attributes:
         q_s, q_l: Action points relative to the robot at action time (network's own Q_l), metres.
