@@ -165,7 +165,8 @@ class NavCore:
         if not all(map(math.isfinite, motion)):  # checked once here, so the action layer need not
             raise ValueError(f"robot state is not finite: p={position}, v={velocity}, a={accel}")
         t0 = time.perf_counter()
-        points = map_action_values(sigmoid(action).tolist() + motion, self.region, self.config.action)
+        squashed = [0.5 * (1.0 + t) for t in np.tanh(0.5 * action).tolist()]  # sigmoid(action), on floats
+        points = map_action_values(squashed + motion, self.region, self.config.action)
         region = self.region
         planes = (region.normals, region.offsets) if region.success else None
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
@@ -180,7 +181,7 @@ class NavCore:
 
     def _remember(self, points, result, position: np.ndarray, plan_ok: bool) -> None:
         q1, qn = result.positions[0], result.positions[-1]
-        q_s, q_l, q1_world, qn_world = position + points.q_s, position + points.q_l, position + q1, position + qn
+        q_s, q_l, q1_world, qn_world = np.array((points.q_s, points.q_l, q1, qn)) + position  # world frame
         self._pending = {
             "plan": obs_lib.Plan(points.q_s, points.q_l, q1, qn, q1_world, qn_world) if plan_ok else None,
             "q_s": q_s,
