@@ -258,12 +258,12 @@ class OmniRobot(composer.Entity):
         _, qpos, qvel, ctrl = views
         m, kv, kp, fmax = self._gains
         d0, d1 = self._dof_list
-        fx = ux + kv * (vx - qvel[d0])  # plain floats: ~3x faster than 2-element numpy arithmetic
-        fy = uy + kv * (vy - qvel[d1])
+        fx = ux + kv * (vx - qvel.item(d0))  # Python floats: cheaper than numpy scalars, same IEEE results
+        fy = uy + kv * (vy - qvel.item(d1))
         if kp:
             q0, q1 = self._qpos_list
-            fx += kp * (px - qpos[q0])
-            fy += kp * (py - qpos[q1])
+            fx += kp * (px - qpos.item(q0))
+            fy += kp * (py - qpos.item(q1))
         c0, c1 = self._ctrl_list
         ctrl[c0] = min(max(m * fx, -fmax), fmax)
         ctrl[c1] = min(max(m * fy, -fmax), fmax)

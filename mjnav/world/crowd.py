@@ -206,12 +206,14 @@ class RandomWalkModel(PedestrianModel):
         dt = self._check_step(dt)
         _check_steps(steps)
         omegas = np.empty((steps, self._heading.shape[0]))
+        since, due, omega = self._since_draw, self._yaw_interval - _TIME_EPS, self._omega
         for k in range(steps):  # yaw-rate draws in step order, as single steps would make them
-            if self._since_draw >= self._yaw_interval - _TIME_EPS:
-                self._omega = self._draw_yaw_rates()
-                self._since_draw = 0.0
-            self._since_draw += dt
-            omegas[k] = self._omega
+            if since >= due:
+                omega = self._omega = self._draw_yaw_rates()
+                since = 0.0
+            since += dt
+            omegas[k] = omega
+        self._since_draw = since
         track = np.empty((steps, *self._pos.shape))
         xmin, ymin, xmax, ymax = self._box
         _random_walk_steps(
