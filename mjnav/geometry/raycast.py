@@ -241,6 +241,16 @@ def add_noise(
         (B,) float64 noisy ranges in [0, max_range], metres (a new array).
     """
     noisy = rng.normal(0.0, std, size=np.shape(ranges))
+    if noisy.ndim == 1 and np.shape(ranges) == noisy.shape:
+        _add_clip(noisy, np.asarray(ranges, dtype=np.float64), float(max_range))  # one pass, no ufunc dispatch
+        return noisy
     noisy += ranges
-    np.maximum(noisy, 0.0, out=noisy)  # two ufuncs in place: ~2.5x faster than np.clip on 360 beams
+    np.maximum(noisy, 0.0, out=noisy)
     return np.minimum(noisy, max_range, out=noisy)
+
+
+@njit(cache=True)
+def _add_clip(noisy: np.ndarray, ranges: np.ndarray, max_range: float) -> None:  # pragma: no cover - numba
+    """``noisy ← min(max(noisy + ranges, 0), max_range)`` in place (as the three ufuncs, one pass)."""
+    for i in range(noisy.shape[0]):
+        noisy[i] = min(max(noisy[i] + ranges[i], 0.0), max_range)

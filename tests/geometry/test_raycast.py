@@ -208,3 +208,14 @@ def test_empty_scene_uses_no_segments_constant():
     angles = beam_angles(16)
     explicit = cast_rays(np.zeros(2), angles, NO_SEGMENTS, NO_CIRCLES, 3.0)
     np.testing.assert_array_equal(explicit, cast_rays(np.zeros(2), angles, None, None, 3.0))
+
+
+def test_noise_equals_clipped_sum_in_one_and_two_dimensions():
+    """add_noise is exactly min(max(ranges + N(0, std²), 0), max_range), for a scan and for a batch."""
+    rng_ranges = np.random.default_rng(5)
+    for shape in ((360,), (4, 90)):
+        ranges = rng_ranges.uniform(-0.5, 10.5, shape)
+        noisy = add_noise(ranges, 0.3, 10.0, np.random.default_rng(7))
+        draw = np.random.default_rng(7).normal(0.0, 0.3, size=shape)
+        np.testing.assert_array_equal(noisy, np.minimum(np.maximum(draw + ranges, 0.0), 10.0))
+        assert noisy.shape == shape
