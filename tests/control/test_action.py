@@ -149,15 +149,20 @@ def test_failed_region_uses_the_star_polyline():
     assert pts.goal_inside == bool(points_in_polygon(np.array([1.0, 1.0]), region.boundary_xy))
 
 
+def _random_regions(rng: np.random.Generator, count: int):
+    """Regions of random scans; every third scan touches an obstacle (the fallback star polyline)."""
+    for k in range(count):
+        ranges = random_scan(rng)
+        if k % 3 == 0:
+            ranges[rng.integers(0, 360)] = 0.05
+        yield compute_region(ranges, ANGLES)
+
+
 def test_jitted_mapping_agrees_with_the_public_geometry():
     """map_action's kernel gives what radii, boundary_distance and goal_inside give, on both region kinds."""
     rng = np.random.default_rng(3)
     kinds = set()
-    for k in range(300):
-        ranges = random_scan(rng)
-        if k % 3 == 0:
-            ranges[rng.integers(0, 360)] = 0.05  # touching: the fallback star polyline
-        region = compute_region(ranges, ANGLES)
+    for k, region in enumerate(_random_regions(rng, 300)):
         kinds.add(region.success)
         cfg = ActionConfig(heading="absolute" if k % 2 else "velocity", long_circle="paper" if k % 4 < 2 else "code")
         act, v, a = rng.uniform(0, 1, 4), rng.uniform(-2.5, 2.5, 2), rng.uniform(-4, 4, 2)
@@ -188,11 +193,7 @@ def test_unchecked_mapping_is_map_action_on_floats():
     """map_action_values on the ten floats gives exactly map_action's points, on both region kinds."""
     rng = np.random.default_rng(8)
     kinds = set()
-    for k in range(60):
-        ranges = random_scan(rng)
-        if k % 3 == 0:
-            ranges[rng.integers(0, 360)] = 0.05
-        region = compute_region(ranges, ANGLES)
+    for region in _random_regions(rng, 60):
         kinds.add(region.success)
         act, v, a, goal = rng.uniform(0, 1, 4), rng.uniform(-2.5, 2.5, 2), rng.uniform(-4, 4, 2), rng.uniform(-6, 6, 2)
         checked = map_action(act, region, v, a, goal)
