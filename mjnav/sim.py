@@ -234,7 +234,7 @@ class NavSim:
         for _ in range(self.config.timing.substeps):
             self.before_substep(physics)
             mujoco.mj_step(model, data)
-        mujoco.mj_step1(model, data)
+        self.sync(physics)
 
     def sync(self, physics: mjcf.Physics) -> None:
         """Recomputes position/velocity quantities (kinematics, contacts) for the current state.
@@ -242,8 +242,15 @@ class NavSim:
         Composer's default ``legacy_step=True`` already does this after every substep; with
         ``legacy_step=False`` (cheaper) call it once per control period, before :meth:`scan` and
         :meth:`robot_in_collision`. It never changes the state.
+
+        ``mj_step`` finds contacts before it integrates, so the contacts on hand here belong to
+        the last substep's start; they are noted for :meth:`robot_in_collision` first (a contact
+        the constraint solver resolved within that substep still counts).
         """
-        mujoco.mj_step1(physics.model.ptr, physics.data.ptr)
+        data = physics.data.ptr
+        if data.ncon and not self._sticky:
+            self._sticky = self._contact_kind(data)
+        mujoco.mj_step1(physics.model.ptr, data)
 
     # ------------------------------------------------------------------ reading
     def robot_state(self, physics: mjcf.Physics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -298,8 +305,8 @@ class NavSim:
     def robot_in_collision(self, physics: mjcf.Physics) -> tuple[bool, str | None]:
         """Whether the robot touched a wall, obstacle or pedestrian during the last period.
 
-        Uses MuJoCo contacts (only robot pairs can collide): those current after each substep
-        of the period, including the final state.
+        Uses MuJoCo contacts (only robot pairs can collide): those found by each physics step
+        of the period (at the step's start state) and in the final state.
 
         Returns:
             ``(collided, kind)`` with kind ``wall``, ``obstacle``, ``pedestrian`` or None.

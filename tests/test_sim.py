@@ -174,3 +174,29 @@ def test_lidar_must_hit_the_scene():
     """A LiDAR above the walls (rays would pass over them) is rejected at build."""
     with pytest.raises(ValueError, match="lidar.height"):
         NavSim(_replace(load_task("stage1"), lidar={"height": 0.7}))
+
+
+def test_contact_in_the_last_substep_counts():
+    """A pedestrian that touches the robot only during the period's last physics step is a collision.
+
+    MuJoCo finds that step's contacts before integrating; the pedestrian is moved away before the
+    end-of-period sync, so only the last step's contacts show it.
+    """
+    config = load_task("stage5")
+    sim, physics = _build(config)
+    sim.initialize_episode(physics, np.random.default_rng(1))
+    model, data = physics.model.ptr, physics.data.ptr
+    robot = sim.robot_state(physics)[0]
+    far = sim.pedestrian_circles()[:, :2]
+    for touching in (False, True):
+        sim.apply_command(physics, np.zeros(2))
+        track = np.repeat(far[None], config.timing.substeps, axis=0)
+        if touching:
+            track[-1, 0] = robot  # pedestrian 0 on the robot for the last physics step only
+        sim._crowd_track = track
+        for _ in range(config.timing.substeps):
+            sim.before_substep(physics)
+            mujoco.mj_step(model, data)
+        data.mocap_pos[sim.crowd.mocap_ids(physics)[0], :2] = far[0]  # gone by the period's end
+        sim.sync(physics)
+        assert sim.robot_in_collision(physics) == ((True, "pedestrian") if touching else (False, None))
