@@ -9,7 +9,8 @@ poses, mesh ids and radii into the compiled model and data.
 Per control period (``timing.control_period``, ``timing.substeps`` physics steps):
 
 1. :meth:`apply_command` sets the robot's triple-integrator reference from its state and jerk
-   and moves the crowd through the period, one step per physics substep;
+   and moves the crowd through the period, one step per physics substep (a crowd that ignores
+   the robot is computed :data:`CROWD_LOOKAHEAD` periods at a time);
 2. before every physics step, :meth:`before_substep` places the pedestrians of that substep
    (mocap positions, so their motion is smooth) and writes the tracking force;
 3. after the period, :meth:`scan` (once) and :meth:`robot_in_collision` read the world.
@@ -44,6 +45,10 @@ __all__ = ["COLLISION_KINDS", "NavSim"]
 
 #: Kinds reported by :meth:`NavSim.robot_in_collision` (index = code in the geom lookup table).
 COLLISION_KINDS = (None, "wall", "obstacle", "pedestrian")
+
+#: Control periods of crowd motion computed in one call when the pedestrian model ignores the
+#: robot (the same steps, fewer calls); a model that reacts to the robot advances period by period.
+CROWD_LOOKAHEAD = 10
 
 
 class NavSim:
@@ -91,7 +96,9 @@ class NavSim:
         self._num_peds = 0
         self._substep = 0
         self._sticky = 0
-        self._crowd_track = np.zeros((0, 0, 2))
+        self._crowd_track = np.zeros((0, 0, 2))  # this period's pedestrian positions, one row a substep
+        self._ahead, self._ahead_at = np.zeros((0, 0, 2)), 0  # crowd steps computed ahead, next row to use
+        self._crowd_now = np.zeros((0, 2))  # the pedestrians' positions now (the last row used)
         self._ped_xy, self._ped_xy_data = np.zeros((0, 2)), None  # mocap x, y view and its MjData
         self._state_views: tuple = (None, None, None)  # (MjData, qpos view, qvel view) of the robot
         self.layout: Layout | None = None
@@ -173,6 +180,8 @@ class NavSim:
         self._segments = np.vstack([wall_segments(cfg.arena.size), polygon_segments(polygons)])
         self._substep, self._sticky = 0, 0
         self._crowd_track = np.zeros((0, self._num_peds, 2))
+        self._ahead, self._ahead_at = np.zeros((0, self._num_peds, 2)), 0
+        self._crowd_now = self.pedestrians.positions if self._num_peds else np.zeros((0, 2))
         self.layout = layout
         return layout
 
@@ -194,11 +203,9 @@ class NavSim:
         self.robot.set_reference(p, v, a, jerk, substeps=substeps)
         self._substep, self._sticky = 0, 0
         if self._num_peds:
-            plan = self.robot.plan(physics)
-            self._crowd_track = self.pedestrians.advance(
-                self._dt, substeps, robot_positions=[row[4:6] for row in plan],
-                robot_radius=self.config.robot.radius,
-            )
+            reacts = self.pedestrians.reacts_to_robot
+            robot = [row[4:6] for row in self.robot.plan(physics)] if reacts else None
+            self._crowd_track = self._advance_crowd(substeps, robot)
 
     def before_substep(self, physics: mjcf.Physics) -> None:
         """Places the pedestrians for the coming physics step, then writes the tracking force."""
@@ -208,9 +215,7 @@ class NavSim:
             self._sticky = self._contact_kind(data)
         if self._num_peds:
             if k >= len(self._crowd_track):  # more substeps than a period: one more crowd step
-                robot = data.qpos[self._qpos].copy()
-                self._crowd_track = self.pedestrians.advance(
-                    self._dt, 1, robot_positions=[robot], robot_radius=self.config.robot.radius)
+                self._crowd_track = self._advance_crowd(1, [data.qpos[self._qpos].copy()])
                 self._substep = k = 0
             if self._ped_xy_data is data:
                 self._ped_xy[...] = self._crowd_track[k]
@@ -218,6 +223,28 @@ class NavSim:
                 data.mocap_pos[self._ped_index, :2] = self._crowd_track[k]
         self.robot.apply_tracking_force(physics)
         self._substep += 1
+
+    def _advance_crowd(self, steps: int, robot_positions: list[np.ndarray] | None) -> np.ndarray:
+        """The crowd's next ``steps`` physics steps, ``(steps, P, 2)`` positions; they become current.
+
+        A model that ignores the robot is advanced :data:`CROWD_LOOKAHEAD` periods at a time and
+        its rows are handed out in order (its own state then runs ahead of the simulation).
+        ``robot_positions`` (the robot centre at the start of each step) may be None for it.
+        """
+        peds = self.pedestrians
+        if peds.reacts_to_robot:
+            track = peds.advance(self._dt, steps, robot_positions=robot_positions,
+                                 robot_radius=self.config.robot.radius)
+        else:
+            ahead, i = self._ahead, self._ahead_at
+            if i + steps > len(ahead):
+                block = peds.advance(self._dt, max(steps, CROWD_LOOKAHEAD * self.config.timing.substeps))
+                ahead = self._ahead = block if i == len(ahead) else np.concatenate([ahead[i:], block])
+                i = 0
+            self._ahead_at = i + steps
+            track = ahead[i : i + steps]
+        self._crowd_now = track[-1]
+        return track
 
     def control_step(self, physics: mjcf.Physics, jerk: np.ndarray) -> None:
         """One control period without composer: command, substeps, then :meth:`sync`.
@@ -270,7 +297,7 @@ class NavSim:
     def _current_circles(self) -> np.ndarray:
         """The reused ``(P, 3)`` circles buffer, refreshed with the current positions."""
         if self._num_peds:
-            self._circles[:, :2] = self.pedestrians.positions
+            self._circles[:, :2] = self._crowd_now
         return self._circles
 
     @property

@@ -200,3 +200,29 @@ def test_contact_in_the_last_substep_counts():
         data.mocap_pos[sim.crowd.mocap_ids(physics)[0], :2] = far[0]  # gone by the period's end
         sim.sync(physics)
         assert sim.robot_in_collision(physics) == ((True, "pedestrian") if touching else (False, None))
+
+
+@pytest.mark.parametrize("model", ["random_walk", "social_force"])
+def test_crowd_lookahead_changes_nothing(monkeypatch, model):
+    """Crowd steps computed many periods ahead give the same world as computing them period by period.
+
+    25 periods cross the look-ahead block boundary; a social-force crowd reacts to the robot and is
+    always advanced period by period. The LiDAR's pedestrians are the mocap bodies' positions.
+    """
+    import mjnav.sim as sim_module
+
+    config = _replace(load_task("stage7"), crowd={"model": model})
+    traces = []
+    for lookahead in (1, 3, sim_module.CROWD_LOOKAHEAD):
+        monkeypatch.setattr(sim_module, "CROWD_LOOKAHEAD", lookahead)
+        sim, physics = _build(config)
+        sim.initialize_episode(physics, np.random.default_rng(5))
+        mocap = sim.crowd.mocap_ids(physics)[: config.crowd.count]
+        trace = []
+        for k in range(25):
+            sim.control_step(physics, np.array([np.sin(k), np.cos(k)]) * 4.0)
+            np.testing.assert_array_equal(sim.pedestrian_circles()[:, :2], physics.data.mocap_pos[mocap, :2])
+            trace.append(np.concatenate([physics.data.qpos, physics.data.mocap_pos.ravel(), sim.scan(physics, noise=False)]))
+        traces.append(np.asarray(trace))
+    assert np.array_equal(traces[0], traces[1]) and np.array_equal(traces[0], traces[2])
+    assert not np.allclose(traces[0][0], traces[0][-1])  # the crowd moved

@@ -48,6 +48,10 @@ class PedestrianModel(abc.ABC):
     The position/velocity/radius properties return copies, safe to keep across steps.
     """
 
+    #: Whether the motion depends on the robot. A model that ignores it may be advanced ahead of
+    #: the simulation in long blocks (:class:`mjnav.sim.NavSim` does): the steps are the same.
+    reacts_to_robot: bool = True
+
     def __init__(self) -> None:
         self._pos = np.zeros((0, 2))
         self._vel = np.zeros((0, 2))
@@ -169,6 +173,8 @@ class RandomWalkModel(PedestrianModel):
     normal away from corners; the disc is pushed out), bounce off walls (reflected, clamped inside).
     Walls come last, so a disc never crosses a wall. The robot is ignored.
     """
+
+    reacts_to_robot = False
 
     def __init__(self, yaw_rate: float = math.pi / 6, yaw_interval: float = YAW_INTERVAL) -> None:
         """Creates the model.
