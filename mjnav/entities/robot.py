@@ -87,6 +87,9 @@ class OmniRobot(composer.Entity):
                                       xyaxes=(1, 0, 0, 0, 0.83, 0.55))
         self._cache_model = None
         self._views: tuple = (None,)  # (MjData, qpos, qvel, ctrl) of the data last tracked
+        self._x = np.zeros((4, 2))  # reference rows p, v, a, jerk; _p, _v, _a, _j are views of them
+        self._p, self._v, self._a, self._j = self._x
+        self._plan_out: np.ndarray | None = None  # (3n, 2) plan rows, reused every period
         self.reset_reference(np.zeros(2))
 
     def _add_rangefinders(self, lidar: LidarConfig) -> tuple[list, list]:
@@ -163,6 +166,7 @@ class OmniRobot(composer.Entity):
         self._body_id = int(physics.bind(self._body).element_id)
         self._geom_id = int(physics.bind(self._geom).element_id)
         self._dt = float(model.opt.timestep)
+        self._opt = model.opt  # a live view of the model's options
         self._qpos_list = [int(i) for i in self._qpos_adr]
         self._dof_list = [int(i) for i in self._dof_adr]
         self._ctrl_list = [int(i) for i in self._ctrl_adr]
@@ -210,13 +214,12 @@ class OmniRobot(composer.Entity):
         """
         if substeps < 1:
             raise ValueError(f"substeps must be >= 1, got {substeps}")
-        self._p = np.array(p, dtype=np.float64)
-        self._v = np.array(v, dtype=np.float64)
-        self._a = np.array(a, dtype=np.float64)
-        self._j = np.array(jerk, dtype=np.float64)
-        self._aj = (*self._a.tolist(), *self._j.tolist())
+        x = self._x  # rows written in place: no new arrays per period
+        x[0], x[1], x[2], x[3] = p, v, a, jerk
+        (ax, ay), (jx, jy) = x[2:].tolist()
+        self._aj = (ax, ay, jx, jy)
         self._substeps = int(substeps)
-        self._plan: list[tuple[float, ...]] | None = None  # made at the first substep (needs dt)
+        self._plan: list[list[float]] | None = None  # made at the first substep (needs dt)
         self._k = 0
         self._t = 0.0
 
@@ -225,15 +228,20 @@ class OmniRobot(composer.Entity):
         p, v, a, j = self._p, self._v, self._a, self._j
         return (p + v * t + a * (t * t / 2) + j * (t**3 / 6), v + a * t + j * (t * t / 2), a + j * t)
 
-    def plan(self, physics: mjcf.Physics) -> list[tuple[float, ...]]:
-        """The period's plan, made on first use: per substep ``(ux, uy, vx, vy, px, py)``.
+    def plan(self, physics: mjcf.Physics) -> list[list[float]]:
+        """The period's plan, made on first use: per substep ``[ux, uy, vx, vy, px, py]``.
 
         u is the planned acceleration (m/s²), (v, p) the planned state at the substep start.
         """
         if self._plan is None:
             self._bind(physics)
-            c = _STEP_POSITION_GAIN.get(int(self._cache_model.opt.integrator), 1.0)  # read live: it may change
-            self._plan = plan_substeps(self._p, self._v, self._a, self._j, self._substeps, self._dt, c)
+            c = _STEP_POSITION_GAIN.get(int(self._opt.integrator), 1.0)  # read live: it may change
+            n = self._substeps
+            out = self._plan_out
+            if out is None or out.shape[0] != 3 * n:
+                out = self._plan_out = np.empty((3 * n, 2))
+            np.matmul(_plan_matrix(n, self._dt, c), self._x, out=out)  # = plan_substeps(p, v, a, j, ...)
+            self._plan = out.reshape(n, 6).tolist()
         return self._plan
 
     def apply_tracking_force(self, physics: mjcf.Physics) -> None:

@@ -168,3 +168,17 @@ def test_integrator_names():
     assert integrator_value("RK4") == mujoco.mjtIntegrator.mjINT_RK4
     with pytest.raises(ValueError):
         integrator_value("verlet")
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+def test_robot_plan_equals_plan_substeps(integrator):
+    """The robot's in-place plan is exactly the public plan_substeps, period after period."""
+    robot, physics = _free_space(integrator)
+    c = 0.5 if integrator == "RK4" else 1.0
+    rng = np.random.default_rng(3)
+    for substeps in (SUBSTEPS, SUBSTEPS, 3, SUBSTEPS):
+        p, v, a, j = rng.normal(size=(4, 2)) * 3.0
+        robot.set_reference(p, v, a, j, substeps=substeps)
+        expected = plan_substeps(p, v, a, j, substeps, PERIOD / SUBSTEPS, c)
+        assert robot.plan(physics) == [list(row) for row in expected]
+        assert robot.acceleration.tolist() == a.tolist()
