@@ -88,22 +88,49 @@ def sigmoid(x: np.ndarray) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * np.asarray(x, dtype=np.float64)))
 
 
-@dataclasses.dataclass
 class StepRecord:
     """What the last control step decided (for info, logging and rendering).
 
-    Positions are in the world frame, metres.
+    Positions are in the world frame, metres. ``q_l_target``, ``predicted`` and ``polygon`` are
+    kept relative to the robot position and moved to the world frame when read (only rendering
+    reads them).
+
+    Attributes:
+        q_s, q_l: (2,) short- and long-term reference points.
+        q_l_target: (2,) the long-term point before the MPC's reachability limit.
+        predicted: (N, 2) the MPC's predicted positions.
+        polygon: (K, 2) the free-space polygon the plan used (vertices, or the fallback points).
+        plan_ok: The MPC solved (no fallback).
+        fallback: The fallback used, or None.
+        solve_time_s: Wall-clock time of the MPC solve, seconds.
+        region_ok: The region of this step was found.
     """
 
-    q_s: np.ndarray
-    q_l: np.ndarray
-    q_l_target: np.ndarray
-    predicted: np.ndarray
-    polygon: np.ndarray
-    plan_ok: bool
-    fallback: str | None
-    solve_time_s: float
-    region_ok: bool
+    __slots__ = ("_origin", "_relative", "fallback", "plan_ok", "q_l", "q_s", "region_ok", "solve_time_s")
+
+    def __init__(self, origin: np.ndarray, q_s: np.ndarray, q_l: np.ndarray, q_l_target: np.ndarray,
+                 predicted: np.ndarray, polygon: np.ndarray, plan_ok: bool, fallback: str | None,
+                 solve_time_s: float, region_ok: bool) -> None:
+        """``origin`` (2,) is the robot position; ``q_l_target``, ``predicted`` and ``polygon`` are
+        relative to it, ``q_s`` and ``q_l`` are in the world frame."""
+        self.q_s, self.q_l = q_s, q_l
+        self.plan_ok, self.fallback, self.solve_time_s, self.region_ok = plan_ok, fallback, solve_time_s, region_ok
+        self._origin, self._relative = origin, (q_l_target, predicted, polygon)
+
+    @property
+    def q_l_target(self) -> np.ndarray:
+        """(2,) world frame, metres."""
+        return self._origin + self._relative[0]
+
+    @property
+    def predicted(self) -> np.ndarray:
+        """(N, 2) world frame, metres."""
+        return self._origin + self._relative[1]
+
+    @property
+    def polygon(self) -> np.ndarray:
+        """(K, 2) world frame, metres."""
+        return self._origin + self._relative[2]
 
 
 class NavCore:
@@ -190,18 +217,11 @@ class NavCore:
             "qn": qn_world,
             "plan_ok": plan_ok,
         }
-        polygon = position + self.region.vertices if self.region.success else position + self.region.boundary_xy
+        region = self.region
         self.record = StepRecord(
-            q_s=q_s,
-            q_l=q_l,
-            q_l_target=position + points.q_l_ref,
-            predicted=position + result.positions,
-            polygon=polygon,
-            plan_ok=plan_ok,
-            fallback=result.fallback,
-            solve_time_s=result.solve_time_s,
-            region_ok=bool(self.region.success),
-        )
+            position, q_s, q_l, points.q_l_ref, result.positions, region.vertices if region.success else region.boundary_xy,
+            plan_ok, result.fallback, result.solve_time_s, bool(region.success),
+        )  # fmt: skip
 
     def plan_with(self, planner: Planner, scan: np.ndarray, position: np.ndarray, velocity: np.ndarray,
                   accel: np.ndarray) -> np.ndarray:
@@ -214,7 +234,7 @@ class NavCore:
         jerk = np.clip(jerk, -self.config.mpc.j_max, self.config.mpc.j_max)
         here = position.copy()
         self._pending = {"plan": None, "q_s": here, "q_l": here, "q1": here, "qn": here, "plan_ok": False}
-        self.record = StepRecord(here, here, here, here[None], position + self.region.boundary_xy, False,
+        self.record = StepRecord(here, here, here, np.zeros(2), np.zeros((1, 2)), self.region.boundary_xy, False,
                                  None, 0.0, bool(self.region.success))
         return jerk
 

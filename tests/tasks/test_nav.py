@@ -158,3 +158,20 @@ def test_rangefinder_sites_optional_for_analytic_lidar() -> None:
     obs_a, _ = with_sites.reset(seed=2)
     obs_b, _ = without.reset(seed=2)
     np.testing.assert_array_equal(obs_a, obs_b)
+
+
+def test_step_record_is_in_the_world_frame(stage4: NavGymEnv) -> None:
+    """The record's points, prediction and polygon are the plan's, shifted by the robot position."""
+    stage4.reset(seed=2)
+    core = stage4.task.core
+    position, velocity, accel = np.array([3.0, -2.0]), np.array([0.5, 0.2]), np.zeros(2)
+    region = core.region
+    core.plan(np.array([0.3, -0.2, 0.5, 0.1]), position, velocity, accel)
+    record, pending = core.record, core._pending
+    np.testing.assert_array_equal(record.q_s, pending["q_s"])
+    np.testing.assert_array_equal(record.predicted[0], pending["q1"])
+    np.testing.assert_array_equal(record.predicted[-1], pending["qn"])
+    relative = region.vertices if region.success else region.boundary_xy
+    np.testing.assert_allclose(record.polygon - position, relative, atol=1e-12)
+    assert np.linalg.norm(record.q_l_target - position) <= core.config.lidar.max_range  # a point of the region
+    assert record.plan_ok == pending["plan_ok"] and record.region_ok == bool(region.success)
