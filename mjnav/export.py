@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from mjnav.entities.arena import SCENE_CONAFFINITY
 from mjnav.sim import NavSim
 from mjnav.world.layout import Layout
 
@@ -67,7 +68,9 @@ def bake_layout(sim: NavSim, layout: Layout, ped_positions: np.ndarray) -> mjcf.
 
     Obstacle slots take their bank mesh and pose, pedestrians their radius and position (unused
     slots stay parked), the robot body moves to the start with joint ``ref`` = start, so
-    ``qpos`` still reads world coordinates and ``qpos0`` is the start.
+    ``qpos`` still reads world coordinates and ``qpos0`` is the start. The scene geoms get back
+    conaffinity 1, so that bodies added to the scene collide with them; the robot's explicit
+    contact pairs stay (MuJoCo does not repeat a pair's contacts in its dynamic search).
 
     Args:
         sim: A fresh simulation used only for export (its MJCF is modified).
@@ -91,6 +94,8 @@ def bake_layout(sim: NavSim, layout: Layout, ped_positions: np.ndarray) -> mjcf.
     body.pos = (start[0], start[1], body.pos[2])
     for joint, value in zip(sim.robot.joints, start, strict=True):
         joint.ref = value
+    for geom in sim.scene_geoms:
+        geom.conaffinity = SCENE_CONAFFINITY
     return sim.mjcf_model
 
 

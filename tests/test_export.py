@@ -29,13 +29,18 @@ print(json.dumps({
     "ranges": data.sensordata[model.sensor_adr[rays]].tolist(), "names": names[:2],
     "qpos": data.qpos.tolist(), "mocap_error": float(np.abs(data.mocap_pos - traj["mocap_pos"][0]).max()),
     "mjnav_imported": any(m.startswith("mjnav") for m in sys.modules),
+    "wall_conaffinity": int(model.geom_conaffinity[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "wall_px")]),
+    "npair": int(model.npair),
 }))
 """
 
 
 @pytest.mark.parametrize("task", ["stage3", "stage6"])
 def test_exported_scene_reproduces_first_scan(tmp_path: Path, task: str):
-    """A plain-MuJoCo load of scene.xml reads mjnav's noise-free first scan to 1e-6 m, robot at start."""
+    """A plain-MuJoCo load of scene.xml reads mjnav's noise-free first scan to 1e-6 m, robot at start.
+
+    The scene keeps the robot's explicit contact pairs and the scene geoms' conaffinity 1.
+    """
     config = load_task(task)
     scene = export_world(config, seed=7, out_dir=tmp_path / "world", steps=5)
     trajectory = scene.parent / "trajectory.npz"
@@ -54,6 +59,8 @@ def test_exported_scene_reproduces_first_scan(tmp_path: Path, task: str):
     np.testing.assert_allclose(out["qpos"], layout.start, atol=1e-12)
     assert out["names"] == ["robot/ray_000", "robot/ray_001"]
     assert out["mocap_error"] < 1e-12
+    assert out["wall_conaffinity"] == 1  # bodies added to the scene collide with it as usual
+    assert out["npair"] == len(sim.scene_geoms)  # the robot's contacts, as in mjnav
     data = np.load(trajectory)
     assert data["mocap_pos"].shape == (6, physics.model.nmocap, 3)
     np.testing.assert_array_equal(data["goal"], layout.goal)

@@ -226,3 +226,43 @@ def test_crowd_lookahead_changes_nothing(monkeypatch, model):
         traces.append(np.asarray(trace))
     assert np.array_equal(traces[0], traces[1]) and np.array_equal(traces[0], traces[2])
     assert not np.allclose(traces[0][0], traces[0][-1])  # the crowd moved
+
+
+def _contacts(data) -> list[tuple]:
+    """The current contacts, order-free: geom pair, dim, distance, position, normal, friction, solref."""
+    rows = []
+    for c in data.contact[: data.ncon]:
+        rows.append((*sorted(c.geom.tolist()), int(c.dim), *np.round(np.r_[c.dist, c.pos, c.frame[:3]], 12),
+                     *c.friction.tolist(), *c.solref.tolist(), *c.solimp.tolist()))
+    return sorted(rows)
+
+
+def test_contact_pairs_find_the_same_contacts():
+    """Explicit robot pairs give the contacts MuJoCo's contype/conaffinity filtering gives.
+
+    The robot is placed at random near walls, obstacles and pedestrians; both builds agree on
+    every contact (geoms, distance, point, normal and its parameters), and only robot pairs appear.
+    """
+    config = load_task("stage4")
+    sims = [NavSim(config, contact_pairs=flag) for flag in (True, False)]
+    physics = [sim.make_physics() for sim in sims]
+    assert physics[0].model.npair > 0 and physics[1].model.npair == 0
+    for sim, phys in zip(sims, physics, strict=True):
+        sim.initialize_episode(phys, np.random.default_rng(4))
+    robot_geom = sims[0].robot.geom_id(physics[0])
+    rng = np.random.default_rng(0)
+    anchors = np.vstack([sims[0].pedestrian_circles()[:, :2],
+                         *[p.mean(axis=0, keepdims=True) for p in sims[0].arena.obstacle_polygons(physics[0], 0.3)],
+                         [[9.9, 0.0], [-9.9, 5.0], [3.0, 14.9], [0.0, -14.9]]])
+    touching = 0
+    for _ in range(300):
+        xy = anchors[rng.integers(len(anchors))] + rng.uniform(-0.6, 0.6, 2)
+        found = []
+        for sim, phys in zip(sims, physics, strict=True):
+            sim.robot.set_state(phys, xy)
+            mujoco.mj_forward(phys.model.ptr, phys.data.ptr)
+            found.append(_contacts(phys.data.ptr))
+        assert found[0] == found[1]
+        assert all(robot_geom in row[:2] for row in found[0])
+        touching += bool(found[0])
+    assert touching > 50

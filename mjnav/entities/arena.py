@@ -31,7 +31,8 @@ __all__ = ["PARK_DEPTH", "NavArena", "body_bvh_order", "prism_mesh", "quat_to_ma
 
 #: Parked items (obstacle slots, pedestrians) sit this far below the floor, metres.
 PARK_DEPTH = 100.0
-#: Contact bits: only the robot (contype 1) collides; everything else has conaffinity 1.
+#: Contact bits: only the robot (contype 1) collides; everything else has conaffinity 1 (NavSim
+#: sets it to 0 and lists the robot's contacts as explicit pairs; exported scenes have it back).
 SCENE_CONTYPE, SCENE_CONAFFINITY = 0, 1
 _WALL_RGBA = (0.55, 0.55, 0.6, 1.0)
 _OBSTACLE_RGBA = (0.85, 0.45, 0.2, 1.0)
