@@ -275,7 +275,7 @@ def _in_star(x: float, y: float, vertices: np.ndarray) -> bool:  # pragma: no co
     """:func:`~mjnav.geometry.polygon.points_in_polygon` (even-odd) for one point."""
     k, crossings = vertices.shape[0], 0
     for i in range(k):
-        j = (i + 1) % k
+        j = i + 1 if i + 1 < k else 0  # wrap by compare: `%` divides
         ay, by = vertices[i, 1], vertices[j, 1]
         if (ay > y) != (by > y):
             x_cross = vertices[i, 0] + (y - ay) * (vertices[j, 0] - vertices[i, 0]) / (by - ay)

@@ -405,19 +405,21 @@ def graham_scan(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:  # pragma: no cov
         d = xs[i] * xs[i] + ys[i] * ys[i]
         if d > best:
             best, start = d, i
-    hull = np.empty(n + 1, dtype=np.int64)
+    hull = np.empty(n + 2, dtype=np.int64)
     k = 0
-    for s in range(n + 1):
-        p = (start + s) % n
+    p = start
+    for _ in range(n + 1):  # indices wrap by a compare, not `%` (an integer division per point)
         while k >= 2 and _cross3(xs, ys, hull[k - 2], hull[k - 1], p) <= 0.0:
             k -= 1
         hull[k] = p
         k += 1
+        p = p + 1 if p + 1 < n else 0
     k -= 1  # the start point was appended again to close the chain
     if k < 3:
         return hull[:0]
+    hull[k + 1] = hull[1]  # hull[k] is hull[0] again: consecutive triples need no wrapping
     for i in range(k):
-        a, b, c = hull[i], hull[(i + 1) % k], hull[(i + 2) % k]
+        a, b, c = hull[i], hull[i + 1], hull[i + 2]
         if _cross3(xs, ys, a, b, c) <= 0.0 or xs[a] * ys[b] - ys[a] * xs[b] <= 0.0:
             return hull[:0]
     return hull[:k]

@@ -320,7 +320,7 @@ def _pushed_halfplanes(
     nx, ny, c = np.empty(h), np.empty(h), np.empty(h)
     covered = 0
     for e in range(h):
-        a, b = hull[e], hull[(e + 1) % h]
+        a, b = hull[e], hull[e + 1 if e + 1 < h else 0]  # wrap by compare: `%` divides
         ex, ey = sx[b] - sx[a], sy[b] - sy[a]
         length = math.hypot(ex, ey)
         nx[e], ny[e] = ey / length, -ex / length
@@ -331,7 +331,7 @@ def _pushed_halfplanes(
         while True:
             best = min(best, nx[e] * sx[i] + ny[e] * sy[i])
             covered += 1
-            i = (i + 1) % m
+            i = i + 1 if i + 1 < m else 0
             if i == b or covered > m:
                 break
         c[e] = best + push
@@ -359,7 +359,7 @@ def _intersect(
         return 4, none, none
     vx, vy = np.empty(k), np.empty(k)
     for i in range(k):
-        a, b = dual[i], dual[(i + 1) % k]
+        a, b = dual[i], dual[i + 1 if i + 1 < k else 0]
         det = nx[a] * ny[b] - ny[a] * nx[b]
         if det <= 1e-12:
             return 4, none, none
@@ -388,7 +388,7 @@ def _clockwise_from_smallest_angle(vx: np.ndarray, vy: np.ndarray) -> np.ndarray
             best, start = t, i
     out = np.empty((k, 2))
     for j in range(k):
-        i = (start - j) % k
+        i = start - j if j <= start else start - j + k
         out[j, 0], out[j, 1] = vx[i], vy[i]
     return out
 
@@ -414,7 +414,7 @@ def _edge_halfplanes(cw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma
     k = cw.shape[0]
     normals, offsets = np.zeros((k, 2)), np.zeros(k)
     for i in range(k):
-        j = (i + 1) % k
+        j = i + 1 if i + 1 < k else 0
         ex, ey = cw[j, 0] - cw[i, 0], cw[j, 1] - cw[i, 1]
         length = math.hypot(ex, ey)
         if length > 0.0 and k >= 3:
@@ -436,7 +436,8 @@ def _resample(cw: np.ndarray, num_points: int) -> tuple[np.ndarray, np.ndarray]:
     row = 0
     for i in range(k):
         ax, ay = ccw[i, 0], ccw[i, 1]
-        bx, by = ccw[(i + 1) % k, 0], ccw[(i + 1) % k, 1]
+        j = i + 1 if i + 1 < k else 0
+        bx, by = ccw[j, 0], ccw[j, 1]
         for s in range(extra[i] + 1):
             f = s / (extra[i] + 1.0)
             out[row, 0] = ax + f * (bx - ax)
@@ -450,7 +451,8 @@ def _resample(cw: np.ndarray, num_points: int) -> tuple[np.ndarray, np.ndarray]:
             best, start = t, i
     polar, xy = np.empty((num_points, 2)), np.empty((num_points, 2))
     for i in range(num_points):
-        x, y = out[(start + i) % num_points, 0], out[(start + i) % num_points, 1]
+        q = start + i if start + i < num_points else start + i - num_points
+        x, y = out[q, 0], out[q, 1]
         xy[i, 0], xy[i, 1] = x, y
         polar[i, 0], polar[i, 1] = math.hypot(x, y), _polar_angle(x, y)
     return polar, xy
@@ -462,7 +464,7 @@ def _largest_remainder(ccw: np.ndarray, total: int) -> np.ndarray:  # pragma: no
     k = ccw.shape[0]
     quota = np.empty(k)
     for i in range(k):
-        j = (i + 1) % k
+        j = i + 1 if i + 1 < k else 0
         t0 = math.atan2(ccw[i, 1], ccw[i, 0])
         t1 = math.atan2(ccw[j, 1], ccw[j, 0])
         quota[i] = ((t1 - t0) % (2.0 * math.pi)) / (2.0 * math.pi) * total
