@@ -219,7 +219,8 @@ class NavCore:
         }
         region = self.region
         self.record = StepRecord(
-            position, q_s, q_l, points.q_l_ref, result.positions, region.vertices if region.success else region.boundary_xy,
+            position.copy(), q_s, q_l, points.q_l_ref, result.positions,
+            region.vertices if region.success else region.boundary_xy,
             plan_ok, result.fallback, result.solve_time_s, bool(region.success),
         )  # fmt: skip
 
