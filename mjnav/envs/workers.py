@@ -79,8 +79,11 @@ class _EnvGroup:
     def reset(self) -> None:
         """Reset every environment (seeded with ``seed + index`` the first time)."""
         for i, env in zip(self.indices, self.envs, strict=True):
-            with _blame(i):
+            try:
                 self.buf["obs"][i], _ = env.reset(seed=None if self._seeded else self.seed + i)
+            except Exception as exc:
+                _blame(exc, i)
+                raise
         self._seeded = True
         self.buf["outcome"][self.indices.start : self.indices.stop] = 0
 
@@ -90,21 +93,31 @@ class _EnvGroup:
         Returns:
             Sums over this group of the reward terms, sums and counts of the MPC statistics.
         """
-        terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
+        terms: dict[str, float] = {}
+        mpc_sum: dict[str, float] = {}
+        mpc_count: dict[str, int] = {}
         buf = self.buf
+        actions, force, outcomes = buf["actions"], buf["force"], buf["outcome"]
+        observations, rewards, terminated_buf, truncated_buf = buf["obs"], buf["rewards"], buf["terminated"], buf["truncated"]
         for i, env in zip(self.indices, self.envs, strict=True):
-            with _blame(i):
-                obs, reward, terminated, truncated, info = env.step(buf["actions"][i].copy())
-                terms.update(info.get("reward_terms", {}))  # Counter.update adds (negatives kept)
-                mpc_sum.update(info.get("mpc", {}))
-                mpc_count.update(info.get("mpc", {}).keys())
-                truncated = (bool(truncated) or bool(buf["force"][i])) and not terminated
-                buf["outcome"][i] = _outcome_code(info, bool(terminated), truncated)
+            try:
+                obs, reward, terminated, truncated, info = env.step(actions[i].copy())
+                for name, value in info.get("reward_terms", {}).items():  # plain dict sums: cheaper than Counter
+                    terms[name] = terms.get(name, 0.0) + value
+                for name, value in info.get("mpc", {}).items():
+                    mpc_sum[name] = mpc_sum.get(name, 0.0) + value
+                    mpc_count[name] = mpc_count.get(name, 0) + 1
+                terminated = bool(terminated)
+                truncated = (bool(truncated) or bool(force[i])) and not terminated
+                outcomes[i] = _outcome_code(info, terminated, truncated)
                 if terminated or truncated:
                     obs, _ = env.reset()
-                buf["obs"][i], buf["rewards"][i] = obs, reward
-                buf["terminated"][i], buf["truncated"][i] = terminated, truncated
-        return terms, mpc_sum, mpc_count
+                observations[i], rewards[i] = obs, reward
+                terminated_buf[i], truncated_buf[i] = terminated, truncated
+            except Exception as exc:
+                _blame(exc, i)
+                raise
+        return Counter(terms), Counter(mpc_sum), Counter(mpc_count)
 
     def close(self) -> None:
         """Close every environment."""
@@ -112,14 +125,9 @@ class _EnvGroup:
             env.close()
 
 
-@contextlib.contextmanager
-def _blame(index: int) -> Iterator[None]:
-    """Add the environment index to any exception raised inside."""
-    try:
-        yield
-    except Exception as exc:
-        exc.add_note(f"(in environment {index})")
-        raise
+def _blame(exc: Exception, index: int) -> None:
+    """Add the environment index to an exception raised while stepping or resetting it."""
+    exc.add_note(f"(in environment {index})")
 
 
 def _outcome_code(info: dict, terminated: bool, truncated: bool) -> int:
