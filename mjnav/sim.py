@@ -13,6 +13,8 @@ Per control period (``timing.control_period``, ``timing.substeps`` physics steps
    the robot is computed :data:`CROWD_LOOKAHEAD` periods at a time);
 2. before every physics step, :meth:`before_substep` places the pedestrians of that substep
    (mocap positions, so their motion is smooth) and writes the tracking force;
+   :meth:`run_period` does this and the ``mj_step`` calls for the whole period, by default in one
+   compiled call (:mod:`mjnav.fused`, bit-identical);
 3. after the period, :meth:`scan` (once) and :meth:`robot_in_collision` read the world.
 
 :meth:`control_step` runs 1-3 without composer. Randomness: the generator given to
@@ -32,6 +34,7 @@ from dm_control import mjcf
 from mjnav.entities.arena import NavArena
 from mjnav.entities.crowd import Crowd
 from mjnav.entities.robot import OmniRobot, integrator_value
+from mjnav.fused import FusedStepper
 from mjnav.geometry.raycast import add_noise, polygon_segments, wall_segments
 from mjnav.sensors.lidar import AnalyticLidar, MujocoLidar
 from mjnav.world.crowd import make_pedestrian_model
@@ -55,7 +58,7 @@ class NavSim:
     """Arena + robot + crowd of one :class:`~mjnav.config.TaskConfig`, built once."""
 
     def __init__(self, config: TaskConfig, integrator: str | None = None, lidar_method: str = "multiray",
-                 rangefinders: bool = True, contact_pairs: bool = True) -> None:
+                 rangefinders: bool = True, contact_pairs: bool = True, fused: bool = True) -> None:
         """Builds the entities (not compiled yet).
 
         Args:
@@ -72,6 +75,9 @@ class NavSim:
                 geoms' defaults) and take those geoms out of MuJoCo's dynamic collision search
                 (conaffinity 0): the same contacts, with no broadphase, about a quarter of each
                 mj_step. False: contype/conaffinity filtering (robot contype 1, scene conaffinity 1).
+            fused: Run a period's substeps in one compiled call (:meth:`run_period`, same results).
+                It turns itself off, with the reason in ``fused_unavailable``, where MuJoCo's
+                library or struct layout does not check out (:mod:`mjnav.fused`).
         """
         _check_heights(config)
         self.config = config
@@ -108,6 +114,10 @@ class NavSim:
         self._crowd_now = np.zeros((0, 2))  # the pedestrians' positions now (the last row used)
         self._ped_xy, self._ped_xy_data = np.zeros((0, 2)), None  # mocap x, y view and its MjData
         self._state_views: tuple = (None, None, None)  # (MjData, qpos view, qvel view) of the robot
+        self.fused = fused
+        self.fused_unavailable: str | None = None  # why fused substeps turned themselves off
+        self._fused: FusedStepper | None = None
+        self._ped_rows = np.zeros(0, dtype=np.int64)  # mocap rows of the active pedestrians
         self.layout: Layout | None = None
 
     # ------------------------------------------------------------------ building
@@ -190,6 +200,7 @@ class NavSim:
             consecutive = isinstance(self._ped_index, slice)  # then keep a view for the substeps
             self._ped_xy = data.mocap_pos[self._ped_index, :2] if consecutive else np.zeros((0, 2))
             self._ped_xy_data = data if consecutive else None
+        self._ped_rows = np.asarray(self._mocap[: self._num_peds], dtype=np.int64)
         self.robot.set_state(physics, layout.start)
         self.robot.reset_reference(layout.start)
         data.ctrl[:] = 0.0
@@ -264,8 +275,49 @@ class NavSim:
         self._crowd_now = track[-1]
         return track
 
+    def run_period(self, physics: mjcf.Physics) -> None:
+        """The period's physics steps after :meth:`apply_command`: each :meth:`before_substep`, then ``mj_step``.
+
+        With ``fused`` (and :func:`mjnav.fused.fused_support`) all of them run in one compiled
+        call with bit-identical results; otherwise, or when some substeps already ran, in Python.
+        """
+        substeps = self.config.timing.substeps
+        stepper = self._stepper(physics) if not self._substep else None
+        if stepper is None:
+            model, data = physics.model.ptr, physics.data.ptr
+            for _ in range(substeps - self._substep):
+                self.before_substep(physics)
+                mujoco.mj_step(model, data)
+            return
+        robot = self.robot
+        plan = robot.plan_rows(physics)
+        index, gains = robot.tracking_arrays(physics)
+        track = self._crowd_track if self._num_peds else np.zeros((substeps, 0, 2))
+        k = resumed = 0
+        while k < substeps:
+            k = stepper.run(k, not (resumed or self._sticky), plan, track, self._ped_rows, index, gains)
+            if k < substeps:  # the previous step found contacts: note them as before_substep does
+                self._sticky = self._contact_kind(stepper.data)
+                resumed = not self._sticky
+        robot.advance_substeps(substeps)
+        self._substep = substeps
+
+    def _stepper(self, physics: mjcf.Physics) -> FusedStepper | None:
+        """The fused stepper of this physics, if it can run the whole period."""
+        if not self.fused or self.robot.substeps_tracked:
+            return None
+        data = physics.data.ptr
+        stepper = self._fused
+        if stepper is None or stepper.data is not data:
+            try:
+                stepper = self._fused = FusedStepper(physics.model.ptr, data)
+            except RuntimeError as exc:
+                self.fused, self.fused_unavailable = False, str(exc)
+                return None
+        return stepper
+
     def control_step(self, physics: mjcf.Physics, jerk: np.ndarray) -> None:
-        """One control period without composer: command, substeps, then :meth:`sync`.
+        """One control period without composer: :meth:`apply_command`, :meth:`run_period`, :meth:`sync`.
 
         The sync (``mj_step1``, as composer's legacy stepping) makes contacts and kinematics
         describe the final state for :meth:`scan` and :meth:`robot_in_collision`.
@@ -274,11 +326,8 @@ class NavSim:
             physics: The physics.
             jerk: (2,) jerk for the period, m/s³.
         """
-        model, data = physics.model.ptr, physics.data.ptr
         self.apply_command(physics, jerk)
-        for _ in range(self.config.timing.substeps):
-            self.before_substep(physics)
-            mujoco.mj_step(model, data)
+        self.run_period(physics)
         self.sync(physics)
 
     def sync(self, physics: mjcf.Physics) -> None:

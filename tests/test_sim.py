@@ -176,30 +176,33 @@ def test_lidar_must_hit_the_scene():
         NavSim(_replace(load_task("stage1"), lidar={"height": 0.7}))
 
 
-def test_contact_in_the_last_substep_counts():
-    """A pedestrian that touches the robot only during the period's last physics step is a collision.
+@pytest.mark.parametrize("fused", [True, False])
+@pytest.mark.parametrize("substep", [-1, 2])
+def test_contact_in_one_substep_counts(fused, substep):
+    """A pedestrian that touches the robot during one physics step only is a collision.
 
-    MuJoCo finds that step's contacts before integrating; the pedestrian is moved away before the
-    end-of-period sync, so only the last step's contacts show it.
+    MuJoCo finds a step's contacts before integrating; the pedestrian is moved away before the
+    end-of-period sync, so only that step's contacts show it (the last step's: only the sync
+    sees them). Fused and Python substeps note them alike.
     """
     config = load_task("stage5")
-    sim, physics = _build(config)
+    sim = NavSim(config, fused=fused)
+    physics = sim.make_physics()
     sim.initialize_episode(physics, np.random.default_rng(1))
-    model, data = physics.model.ptr, physics.data.ptr
+    data = physics.data.ptr
     robot = sim.robot_state(physics)[0]
     far = sim.pedestrian_circles()[:, :2]
     for touching in (False, True):
         sim.apply_command(physics, np.zeros(2))
         track = np.repeat(far[None], config.timing.substeps, axis=0)
         if touching:
-            track[-1, 0] = robot  # pedestrian 0 on the robot for the last physics step only
+            track[substep, 0] = robot  # pedestrian 0 on the robot for that physics step only
         sim._crowd_track = track
-        for _ in range(config.timing.substeps):
-            sim.before_substep(physics)
-            mujoco.mj_step(model, data)
+        sim.run_period(physics)
         data.mocap_pos[sim.crowd.mocap_ids(physics)[0], :2] = far[0]  # gone by the period's end
         sim.sync(physics)
         assert sim.robot_in_collision(physics) == ((True, "pedestrian") if touching else (False, None))
+    assert sim.fused is fused
 
 
 @pytest.mark.parametrize("model", ["random_walk", "social_force"])

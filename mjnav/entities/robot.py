@@ -170,6 +170,8 @@ class OmniRobot(composer.Entity):
         self._qpos_list = [int(i) for i in self._qpos_adr]
         self._dof_list = [int(i) for i in self._dof_adr]
         self._ctrl_list = [int(i) for i in self._ctrl_adr]
+        self._tracking_index = np.array([*self._dof_list, *self._qpos_list, *self._ctrl_list], dtype=np.int64)
+        self._tracking_gains = np.array(self._gains, dtype=np.float64)
         self._cache_model = model
 
     def body_id(self, physics: mjcf.Physics) -> int:
@@ -234,15 +236,39 @@ class OmniRobot(composer.Entity):
         u is the planned acceleration (m/s²), (v, p) the planned state at the substep start.
         """
         if self._plan is None:
-            self._bind(physics)
-            c = _STEP_POSITION_GAIN.get(int(self._opt.integrator), 1.0)  # read live: it may change
-            n = self._substeps
-            out = self._plan_out
-            if out is None or out.shape[0] != 3 * n:
-                out = self._plan_out = np.empty((3 * n, 2))
-            np.matmul(_plan_matrix(n, self._dt, c), self._x, out=out)  # = plan_substeps(p, v, a, j, ...)
-            self._plan = out.reshape(n, 6).tolist()
+            self._plan = self.plan_rows(physics).tolist()
         return self._plan
+
+    def plan_rows(self, physics: mjcf.Physics) -> np.ndarray:
+        """:meth:`plan` as an (n, 6) array (reused: valid until the next :meth:`set_reference`)."""
+        self._bind(physics)
+        c = _STEP_POSITION_GAIN.get(int(self._opt.integrator), 1.0)  # read live: it may change
+        n = self._substeps
+        out = self._plan_out
+        if out is None or out.shape[0] != 3 * n:
+            out = self._plan_out = np.empty((3 * n, 2))
+        np.matmul(_plan_matrix(n, self._dt, c), self._x, out=out)  # = plan_substeps(p, v, a, j, ...)
+        return out.reshape(n, 6)
+
+    @property
+    def substeps_tracked(self) -> int:
+        """Physics steps of the current period that :meth:`apply_tracking_force` has driven."""
+        return self._k
+
+    def tracking_arrays(self, physics: mjcf.Physics) -> tuple[np.ndarray, np.ndarray]:
+        """What :meth:`apply_tracking_force` computes with, for a compiled loop over substeps.
+
+        Returns:
+            ``index``: (6,) int64 ``[dof x, dof y, qpos x, qpos y, ctrl x, ctrl y]``;
+            ``gains``: (4,) ``[mass (kg), kv (1/s), kp (1/s²), force limit (N)]``.
+        """
+        self._bind(physics)
+        return self._tracking_index, self._tracking_gains
+
+    def advance_substeps(self, count: int) -> None:
+        """Advances the period clock by ``count`` substeps that were tracked elsewhere (same plan)."""
+        self._k = k = self._k + count
+        self._t = k * self._dt
 
     def apply_tracking_force(self, physics: mjcf.Physics) -> None:
         """Writes the tracking force for the coming physics step and advances the period clock.

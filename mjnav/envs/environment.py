@@ -26,7 +26,13 @@ class NavEnvironment(composer.Environment):
     ``suppress_physics_errors``). Hooks, observation updates, rewards and termination are
     composer's. With ``legacy_step=True`` every substep takes composer's path unchanged.
 
-    Relies on composer internals (``_hooks``, ``_physics``, ``_n_sub_steps``) of the pinned
+    A task that offers ``fused_substeps`` (:class:`mjnav.tasks.nav.CrowdNavTask`) runs all the
+    substeps of a step at its first one (``run_substeps``, one compiled call, same results)
+    when no entity or extra hook wants the substeps; composer's observation updates between
+    substeps still happen (they read the task's observation buffer, which only changes after
+    the step).
+
+    Relies on composer internals (``_hooks`` and its hook lists, ``_physics``, ``_n_sub_steps``) of the pinned
     dm-control release; ``tests/envs/test_environment.py`` checks the rollouts match.
     """
 
@@ -43,15 +49,27 @@ class NavEnvironment(composer.Environment):
             self._model_ptr, self._data_ptr = physics.model.ptr, physics.data.ptr
             self._warnings = physics.data.warning.number  # a view: read again after the last substep
             self._warnings_before = self._warnings.tobytes()
+            self._fused = not self._legacy and self._can_fuse()
         if self._legacy:
             super()._substep(action)
             return
-        self._hooks.before_substep(self._physics_proxy, action, self._random_state)
-        mujoco.mj_step(self._model_ptr, self._data_ptr)
-        self._hooks.after_substep(self._physics_proxy, self._random_state)
+        if self._fused:
+            if k == 0:
+                self._task.run_substeps(self._physics_proxy)
+        else:
+            self._hooks.before_substep(self._physics_proxy, action, self._random_state)
+            mujoco.mj_step(self._model_ptr, self._data_ptr)
+            self._hooks.after_substep(self._physics_proxy, self._random_state)
         self._substep_index = k = k + 1
         if k == self._n_sub_steps and self._warnings.tobytes() != self._warnings_before:
             self._raise_warnings(self._physics)
+
+    def _can_fuse(self) -> bool:
+        """Whether the task may run the step's substeps at once: it offers to, no other substep hooks."""
+        if not getattr(self._task, "fused_substeps", False):
+            return False
+        hooks = (self._hooks._before_substep, self._hooks._after_substep)
+        return not any(hook.entity_hooks or hook.extra_hooks for hook in hooks)
 
     def _raise_warnings(self, physics) -> None:
         """Raises (or logs) a ``PhysicsError`` for MuJoCo warnings raised during this step."""

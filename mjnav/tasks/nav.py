@@ -103,6 +103,17 @@ class CrowdNavTask(composer.Task):
         del action, random_state
         self.sim.before_substep(physics)
 
+    @property
+    def fused_substeps(self) -> bool:
+        """Whether :meth:`run_substeps` may stand in for the substep hooks (not overridden, ``sim.fused``)."""
+        before = getattr(self.before_substep, "__func__", None)  # an instance attribute may replace it
+        after = getattr(self.after_substep, "__func__", None)
+        return before is CrowdNavTask.before_substep and after is composer.Task.after_substep and self.sim.fused
+
+    def run_substeps(self, physics) -> None:
+        """All of the step's substeps (hooks and ``mj_step``) at once: :meth:`NavSim.run_period`."""
+        self.sim.run_period(physics)
+
     def after_step(self, physics, random_state) -> None:
         """Scan, score the step and build the next observation."""
         del random_state

@@ -74,3 +74,16 @@ def test_suppressed_warning_is_logged_not_raised(caplog) -> None:
         ts = env.step(np.zeros(4, dtype=np.float32))
     assert np.all(np.isfinite(ts.observation["observation"]))
     assert "mjWARN_BADQPOS" in caplog.text
+
+
+def test_substep_hooks_of_others_still_run() -> None:
+    """An extra substep hook turns fused substeps off: it runs every substep, the rollout is composer's."""
+    calls = []
+    ours = _make(NavEnvironment)
+    ours.add_extra_hook("before_substep", lambda physics, action, random_state: calls.append(1))
+    theirs = _make(composer.Environment)
+    theirs.add_extra_hook("before_substep", lambda physics, action, random_state: None)
+    for a, b in zip(_rollout(ours, steps=10), _rollout(theirs, steps=10), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert len(calls) == 10 * ours.task.physics_steps_per_control_step
+    assert not ours._can_fuse() and ours.task.fused_substeps
