@@ -32,6 +32,9 @@ class NavEnvironment(composer.Environment):
     substeps still happen (they read the task's observation buffer, which only changes after
     the step).
 
+    :meth:`step_task` runs only the task's part of a step, for the Gymnasium adapter, which
+    reads its outputs from the task.
+
     Relies on composer internals (``_hooks`` and its hook lists, ``_physics``, ``_n_sub_steps``) of the pinned
     dm-control release; ``tests/envs/test_environment.py`` checks the rollouts match.
     """
@@ -62,7 +65,37 @@ class NavEnvironment(composer.Environment):
             self._hooks.after_substep(self._physics_proxy, self._random_state)
         self._substep_index = k = k + 1
         if k == self._n_sub_steps and self._warnings.tobytes() != self._warnings_before:
-            self._raise_warnings(self._physics)
+            self._raise_warnings(self._physics, self._warnings, self._warnings_before)
+
+    def can_step_task(self) -> bool:
+        """Whether :meth:`step_task` may stand in for :meth:`step` for a caller that reads the task.
+
+        True when nothing but the task takes part in a step (no entity or extra step hooks),
+        its substeps fuse, physics errors raise and there is no time limit.
+        """
+        hooks = (self._hooks._before_step, self._hooks._after_step)
+        return (not self._physics.legacy_step and self._raise_exception_on_physics_error
+                and self._time_limit == float("inf") and self._can_fuse()
+                and not any(hook.entity_hooks or hook.extra_hooks for hook in hooks))
+
+    def step_task(self, action) -> None:
+        """One control step through the task's own hooks, without composer's step machinery.
+
+        The task's before-step hook, its fused substeps and its after-step hook, exactly as
+        :meth:`step` calls them when :meth:`can_step_task` holds; no observation updater and no
+        ``TimeStep``: read the reward, outcome and observation from the task. A MuJoCo warning
+        raises ``PhysicsError`` as :meth:`step` does. Composer's own bookkeeping (observation
+        buffers, the pending reset after a last step) is not advanced, so do not mix this with
+        :meth:`step` within an episode.
+        """
+        task, physics, proxy = self._task, self._physics, self._physics_proxy
+        task.before_step(proxy, action, self._random_state)
+        warnings = physics.data.ptr.warning.number
+        before = warnings.tobytes()
+        task.run_substeps(proxy)
+        if warnings.tobytes() != before:
+            self._raise_warnings(physics, warnings, before)
+        task.after_step(proxy, self._random_state)
 
     def _can_fuse(self) -> bool:
         """Whether the task may run the step's substeps at once: it offers to, no other substep hooks."""
@@ -71,9 +104,15 @@ class NavEnvironment(composer.Environment):
         hooks = (self._hooks._before_substep, self._hooks._after_substep)
         return not any(hook.entity_hooks or hook.extra_hooks for hook in hooks)
 
-    def _raise_warnings(self, physics) -> None:
-        """Raises (or logs) a ``PhysicsError`` for MuJoCo warnings raised during this step."""
-        new = self._warnings > np.frombuffer(self._warnings_before, dtype=self._warnings.dtype)
+    def _raise_warnings(self, physics, warnings: np.ndarray, before: bytes) -> None:
+        """Raises (or logs) a ``PhysicsError`` for MuJoCo warnings raised since ``before``.
+
+        Args:
+            physics: The physics.
+            warnings: ``data.warning.number`` (a live view).
+            before: Its bytes at the start of the step.
+        """
+        new = warnings > np.frombuffer(before, dtype=warnings.dtype)
         if not new.any():  # counters only fell (a reset inside a hook): nothing was raised
             return
         names = ", ".join(np.compress(new, _WARNING_NAMES))

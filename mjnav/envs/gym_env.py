@@ -50,6 +50,7 @@ class NavGymEnv(gym.Env):
         seed: int | None = None,
         render_mode: str | None = None,
         timing_info: bool = False,
+        task_steps: bool = True,
     ) -> None:
         """Build the composer environment (compiled once).
 
@@ -60,8 +61,14 @@ class NavGymEnv(gym.Env):
             render_mode: ``"rgb_array"`` or None.
             timing_info: Add wall-clock MPC solve times (``info["mpc"]["solve_time_ms"]``); off by
                 default so that ``info`` is a deterministic function of seed and actions.
+            task_steps: Step through the task alone (``NavEnvironment.step_task``: the same
+                hooks, results and errors, without composer's observation updater and
+                ``TimeStep``, about a tenth of a step) whenever, at reset, nothing else takes
+                part in a step; False: always ``composer.Environment.step``.
         """
         self._timing_info = timing_info
+        self._task_steps = task_steps
+        self._step_task = False  # decided at every reset
         self.config = resolve_config(task, overrides)
         self._env = make_env(self.config, seed=seed)
         self.task = self._env.task
@@ -83,6 +90,7 @@ class NavGymEnv(gym.Env):
         if options and "episode_seed" in options:
             self.task.next_episode_seed = int(options["episode_seed"])
         timestep = self._env.reset()
+        self._step_task = self._task_steps and self._env.can_step_task()
         return timestep.observation["observation"].copy(), self._info()
 
     def step(self, action):
@@ -93,11 +101,17 @@ class NavGymEnv(gym.Env):
         """
         if self.task.layout is None or self.task.outcome.done:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
-        timestep = self._env.step(np.asarray(action, dtype=np.float32))
+        action = np.asarray(action, dtype=np.float32)
+        if self._step_task:
+            self._env.step_task(action)
+            obs, reward = self.task.observation, float(self.task.get_reward(None))
+        else:
+            timestep = self._env.step(action)
+            obs, reward = timestep.observation["observation"].copy(), float(timestep.reward)
         outcome = self.task.outcome
         terminated = outcome.terminal
         truncated = outcome.done and not terminated
-        return timestep.observation["observation"].copy(), float(timestep.reward), terminated, truncated, self._info()
+        return obs, reward, terminated, truncated, self._info()
 
     def _info(self) -> dict[str, Any]:
         record = self.task.core.record

@@ -133,6 +133,11 @@ class CrowdNavTask(composer.Task):
         """The episode's current :class:`Outcome`."""
         return self.core.outcome
 
+    @property
+    def observation(self) -> np.ndarray:
+        """The current observation (spec §6, float32), a copy."""
+        return self._obs.copy()
+
     def get_reward(self, physics) -> float:
         """Σ weight·term of the last step (spec §7)."""
         del physics

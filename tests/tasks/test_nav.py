@@ -175,3 +175,53 @@ def test_step_record_is_in_the_world_frame(stage4: NavGymEnv) -> None:
     np.testing.assert_allclose(record.polygon - position, relative, atol=1e-12)
     assert np.linalg.norm(record.q_l_target - position) <= core.config.lidar.max_range  # a point of the region
     assert record.plan_ok == pending["plan_ok"] and record.region_ok == bool(region.success)
+
+
+def _gym_trace(env: NavGymEnv, steps: int = 620) -> list:
+    obs, info = env.reset(seed=4)
+    rng = np.random.default_rng(0)
+    trace = [obs, info]
+    for _ in range(steps):
+        out = env.step(rng.normal(size=4).astype(np.float32) * 2)
+        trace.append(out)
+        if out[2] or out[3]:
+            trace.append(env.reset())
+    return trace
+
+
+@pytest.mark.parametrize("stage", ["stage1", "stage7"])
+def test_task_steps_equal_composer_steps(stage: str) -> None:
+    """Stepping through the task alone gives composer's observations, rewards, flags and info."""
+    fast, slow = NavGymEnv(stage, seed=2), NavGymEnv(stage, seed=2, task_steps=False)
+    ours, theirs = _gym_trace(fast), _gym_trace(slow)
+    assert fast._step_task and not slow._step_task
+    assert sum(isinstance(x, tuple) and len(x) == 2 for x in ours) >= 2  # episodes ended and reset
+    for a, b in zip(ours, theirs, strict=True):
+        np.testing.assert_equal(a, b)
+
+
+def test_another_step_hook_means_composer_steps() -> None:
+    """An extra composer hook is honoured: from the next reset the environment steps through composer."""
+    env = NavGymEnv("stage4", seed=0)
+    calls = []
+    env.reset(seed=1)
+    assert env._step_task
+    env._env.add_extra_hook("after_step", lambda physics, random_state: calls.append(1))
+    env.reset(seed=1)
+    assert not env._step_task
+    for _ in range(3):
+        env.step(ZERO)
+    assert len(calls) == 3
+
+
+def test_task_step_raises_physics_errors() -> None:
+    """A MuJoCo warning inside a task step raises PhysicsError naming it, as composer's step does."""
+    from dm_control.rl import control
+
+    env = NavGymEnv("stage4", seed=0)
+    env.reset(seed=1)
+    assert env._step_task
+    _, gains = env.task.sim.robot.tracking_arrays(env.physics)
+    gains[0] = np.nan  # the tracking force (mass × acceleration) turns NaN
+    with pytest.raises(control.PhysicsError, match="mjWARN_BADCTRL"):
+        env.step(ZERO)
