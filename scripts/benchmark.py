@@ -5,9 +5,10 @@
 
 Prints, all from one run:
   * bare MuJoCo ``mj_step`` rate of the same compiled world (reference);
-  * one environment through the composer task with random actions: steps/s and µs per part
-    (physics = substeps incl. pedestrians and tracking force, lidar, region, action mapping, MPC,
-    reward, observation, rest = composer and adapter overhead);
+  * one environment with random actions, stepped by ``composer.Environment.step`` and by the
+    Gymnasium environment's task steps (``NavEnvironment.step_task``, what the adapter runs):
+    steps/s and µs per part (physics = substeps incl. pedestrians and tracking force, lidar,
+    region, action mapping, MPC, reward, observation, rest = composer and wrapper overhead);
   * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments (default: the training
     default, ``train.num_envs``) with 1, 2 and all-core workers
     (this process stepping the first block), and all-core worker processes with this process idle.
@@ -55,8 +56,8 @@ def bare_physics(env: NavGymEnv, steps: int) -> Block:
 class SingleEnv:
     """One environment with random actions; accumulates per-part times over all timed blocks."""
 
-    def __init__(self, config, steps: int, seed: int) -> None:
-        self.env = NavGymEnv(config, seed=seed)
+    def __init__(self, config, steps: int, seed: int, task_steps: bool = True) -> None:
+        self.env = NavGymEnv(config, seed=seed, task_steps=task_steps)
         self.steps = steps
         self.rng = np.random.default_rng(seed)
         self.env.reset(seed=seed)
@@ -91,7 +92,7 @@ class SingleEnv:
         n = max(self.total_steps, 1)
         parts = {k: 1e6 * v / n for timers in self._timers for k, v in timers.items()}
         parts["reset (amortised)"] = 1e6 * self.reset_time / n
-        parts["rest (composer, adapter)"] = 1e6 * self.total_time / n - sum(parts.values())
+        parts["rest (composer, wrappers)"] = 1e6 * self.total_time / n - sum(parts.values())
         return parts
 
 
@@ -134,9 +135,11 @@ def main(argv: list[str]) -> None:
     seed, num_envs, rounds = int(opts["seed"]), int(opts["num_envs"]), int(opts["rounds"])
     if rounds < 1:
         raise ConfigError(f"rounds must be >= 1, got {rounds}")
-    single = SingleEnv(config, int(opts["steps"]), seed)
-    blocks: dict[str, Block] = {"bare": bare_physics(single.env, 5 * int(opts["steps"])), "single": single.block}
-    closers = []
+    singles = {name: SingleEnv(config, int(opts["steps"]), seed, task_steps=name == "task")
+               for name in ("composer", "task")}
+    blocks: dict[str, Block] = {"bare": bare_physics(singles["task"].env, 5 * int(opts["steps"]))}
+    blocks.update({f"single {name}": single.block for name, single in singles.items()})
+    closers = [single.env.close for single in singles.values()]
     try:
         for label, workers, in_main in adapter_rows(os.cpu_count() or 1):
             blocks[label], close = vec_env(config, num_envs, workers, int(opts["vec_steps"]), seed, in_main)
@@ -145,15 +148,19 @@ def main(argv: list[str]) -> None:
     finally:
         for close in closers:
             close()
-        single.env.close()
-    _print(config, rates, single.parts(), num_envs, rounds)
+    _print(config, rates, {name: single.parts() for name, single in singles.items()}, num_envs, rounds)
 
 
-def _print(config, rates: dict[str, np.ndarray], parts: dict[str, float], num_envs: int, rounds: int) -> None:
+_SINGLE_LABELS = {"composer": "composer.Environment.step (dm_env)",
+                  "task": "Gymnasium, task steps (as in the adapter)"}
+
+
+def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, float]], num_envs: int,
+           rounds: int) -> None:
     substeps = config.timing.substeps
     bare = rates.pop("bare")
     periods = np.median(bare) / substeps  # control periods/s of bare physics
-    single = rates.pop("single")
+    singles = {name: rates.pop(f"single {name}") for name in parts}
 
     def spread(values: np.ndarray) -> str:
         return f"{np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f})"
@@ -161,13 +168,18 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, float], num_en
     print(f"## {config.name}: {config.crowd.count} pedestrians, {config.obstacles.count} obstacles, "
           f"LiDAR backend {config.lidar.backend}, MPC solver {config.mpc.solver}; "
           f"medians of {rounds} interleaved rounds (min-max)\n")
-    print(f"bare mj_step: {spread(bare)} /s -> {periods:,.0f} control periods/s ({substeps} substeps)")
-    print(f"one environment (composer task, random actions): {spread(single)} steps/s "
-          f"({1e6 / np.median(single):.0f} us/step, {np.median(single) / periods:.3f} x bare physics)\n")
-    print("| part | us/step | share |\n|---|---|---|")
-    total = sum(parts.values())
-    for name, us in parts.items():
-        print(f"| {name} | {us:.1f} | {us / total:.0%} |")
+    print(f"bare mj_step: {spread(bare)} /s -> {periods:,.0f} control periods/s ({substeps} substeps)\n")
+    print("| one environment, random actions | steps/s | us/step | x bare physics periods |\n|---|---|---|---|")
+    for name, values in singles.items():
+        print(f"| {_SINGLE_LABELS[name]} | {spread(values)} | {1e6 / np.median(values):.0f} | "
+              f"{np.median(values) / periods:.3f} |")
+    names = list(parts)
+    print("\n| part (us/step) | " + " | ".join(_SINGLE_LABELS[n] for n in names) + " |")
+    print("|---|" + "---|" * len(names))
+    totals = {n: sum(parts[n].values()) for n in names}
+    for part in parts[names[0]]:
+        cells = " | ".join(f"{parts[n][part]:.1f} ({parts[n][part] / totals[n]:.0%})" for n in names)
+        print(f"| {part} | {cells} |")
     print(f"\n| adapter: {num_envs} envs | env steps/s | x bare physics periods |\n|---|---|---|")
     for label, values in rates.items():
         print(f"| {label} | {spread(values)} | {np.median(values) / periods:.3f} |")
