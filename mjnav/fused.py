@@ -7,6 +7,11 @@ numba kernel that calls MuJoCo's own ``mj_step`` through its C address, with the
 floating-point operations in the same order, so the results are bit-identical to the Python
 loop (``tests/test_fused.py``).
 
+A MuJoCo error inside ``mj_step`` (``mju_error``: an exhausted arena, a raising Python
+callback) cannot pass through the compiled frame, so the kernel is not used while any
+``mjcb_*`` callback is installed (:func:`callbacks_installed`); for the small scenes of this
+package the arena is far from full.
+
 The kernel reads one field of ``mjData`` that the Python bindings expose only as a scalar
 (``ncon``); its offset comes from MuJoCo's own struct description (``mujoco.introspect``) laid
 out by ``ctypes`` and is checked against the bindings on a probe model. Anything that does not
@@ -29,8 +34,9 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-__all__ = ["FusedStepper", "fused_support"]
+__all__ = ["FusedStepper", "callbacks_installed", "fused_support"]
 
+_CALLBACK_GETTERS = tuple(getattr(mujoco, name) for name in dir(mujoco) if name.startswith("get_mjcb_"))
 _LIBRARY_PATTERNS = ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll")
 _PRIMITIVES = {
     "int": ctypes.c_int, "unsigned int": ctypes.c_uint, "float": ctypes.c_float, "mjtNum": ctypes.c_double,
@@ -171,9 +177,30 @@ def _field_view(data: mujoco.MjData, offset: int) -> np.ndarray:
     return np.frombuffer((ctypes.c_char * 4).from_address(data._address + offset), dtype=np.int32)
 
 
-@functools.cache
+def callbacks_installed() -> bool:
+    """Whether any MuJoCo callback (``mjcb_*``) is installed.
+
+    A Python callback that raises inside ``mj_step`` ends in ``mju_error``, which the bindings
+    turn into a Python exception only when they made the call; callers then use the Python loop.
+    """
+    for get in _CALLBACK_GETTERS:
+        if get() is not None:
+            return True
+    return False
+
+
 def fused_support() -> tuple[int, int] | str:
-    """``(mj_step address, ncon offset)``, or why fused substeps are unavailable here."""
+    """``(mj_step address, ncon offset)``, or why fused substeps are unavailable here.
+
+    Checked once per process (with no MuJoCo callback installed: the probe steps a model).
+    """
+    if callbacks_installed():
+        return "a MuJoCo callback (mjcb_*) is installed"
+    return _checked_support()
+
+
+@functools.cache
+def _checked_support() -> tuple[int, int] | str:
     try:
         step, offset = _step_address(), _ncon_offset()
         _probe(step, offset)

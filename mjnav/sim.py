@@ -34,7 +34,7 @@ from dm_control import mjcf
 from mjnav.entities.arena import NavArena
 from mjnav.entities.crowd import Crowd
 from mjnav.entities.robot import OmniRobot, integrator_value
-from mjnav.fused import FusedStepper
+from mjnav.fused import FusedStepper, callbacks_installed
 from mjnav.geometry.raycast import add_noise, polygon_segments, wall_segments
 from mjnav.sensors.lidar import AnalyticLidar, MujocoLidar
 from mjnav.world.crowd import make_pedestrian_model
@@ -279,10 +279,11 @@ class NavSim:
         """The period's physics steps after :meth:`apply_command`: each :meth:`before_substep`, then ``mj_step``.
 
         With ``fused`` (and :func:`mjnav.fused.fused_support`) all of them run in one compiled
-        call with bit-identical results; otherwise, or when some substeps already ran, in Python.
+        call with bit-identical results; otherwise, when some substeps already ran, or while a
+        MuJoCo callback is installed (:func:`mjnav.fused.callbacks_installed`), in Python.
         """
         substeps = self.config.timing.substeps
-        stepper = self._stepper(physics) if not self._substep else None
+        stepper = None if self._substep or callbacks_installed() else self._stepper(physics)
         if stepper is None:
             model, data = physics.model.ptr, physics.data.ptr
             for _ in range(substeps - self._substep):

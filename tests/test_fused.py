@@ -81,3 +81,29 @@ def test_unavailable_support_falls_back_to_python(monkeypatch):
     reference.initialize_episode(twin, np.random.default_rng(2))
     reference.control_step(twin, np.array([3.0, -1.0]))
     np.testing.assert_array_equal(physics.data.qpos, twin.data.qpos)
+
+
+def test_installed_callback_means_python_substeps(monkeypatch):
+    """While a MuJoCo callback is installed the period runs in Python, and the callback sees its steps."""
+    import mujoco
+
+    config = load_task("stage6")
+    sim = NavSim(config)
+    physics = sim.make_physics()
+    sim.initialize_episode(physics, np.random.default_rng(2))
+    sim.control_step(physics, np.array([3.0, -1.0]))  # fused
+
+    def refuse(*args):
+        raise AssertionError("fused substeps while a callback is installed")
+
+    monkeypatch.setattr(fused.FusedStepper, "run", refuse)
+    times = []
+    mujoco.set_mjcb_control(lambda model, data: times.append(data.time))
+    try:
+        assert fused.callbacks_installed()
+        assert isinstance(fused.fused_support(), str)
+        sim.control_step(physics, np.array([3.0, -1.0]))
+    finally:
+        mujoco.set_mjcb_control(None)
+    assert not fused.callbacks_installed() and sim.fused  # fused again from the next period
+    assert len(set(times)) == config.timing.substeps + 1  # every physics step's start, and the sync
