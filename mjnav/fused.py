@@ -2,8 +2,8 @@
 
 Between two control steps the simulation does, per physics substep: place the pedestrians
 (mocap), write the robot's tracking force, note a robot contact, ``mj_step``. In Python that
-loop costs several times the ``mj_step`` calls themselves. :class:`FusedStepper` runs it in one
-numba kernel that calls MuJoCo's own ``mj_step`` through its C address, with the same
+loop costs about as much as the ``mj_step`` calls themselves. :class:`FusedStepper` runs it in
+one numba kernel that calls MuJoCo's own ``mj_step`` through its C address, with the same
 floating-point operations in the same order, so the results are bit-identical to the Python
 loop (``tests/test_fused.py``).
 
