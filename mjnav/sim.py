@@ -279,21 +279,22 @@ class NavSim:
         """The period's physics steps after :meth:`apply_command`: each :meth:`before_substep`, then ``mj_step``.
 
         With ``fused`` (and :func:`mjnav.fused.fused_support`) all of them run in one compiled
-        call with bit-identical results; otherwise, when some substeps already ran, or while a
-        MuJoCo callback is installed (:func:`mjnav.fused.callbacks_installed`), in Python.
+        call with bit-identical results; otherwise, when some substeps already ran, when no
+        :meth:`apply_command` started the period, or while a MuJoCo callback is installed
+        (:func:`mjnav.fused.callbacks_installed`), in Python.
         """
         substeps = self.config.timing.substeps
         stepper = None if self._substep or callbacks_installed() else self._stepper(physics)
-        if stepper is None:
+        robot = self.robot
+        plan = robot.plan_rows(physics) if stepper is not None else None
+        track = self._crowd_track if self._num_peds else np.zeros((substeps, 0, 2))
+        if stepper is None or len(plan) != substeps or len(track) < substeps:  # no apply_command yet
             model, data = physics.model.ptr, physics.data.ptr
             for _ in range(substeps - self._substep):
                 self.before_substep(physics)
                 mujoco.mj_step(model, data)
             return
-        robot = self.robot
-        plan = robot.plan_rows(physics)
         index, gains = robot.tracking_arrays(physics)
-        track = self._crowd_track if self._num_peds else np.zeros((substeps, 0, 2))
         k = resumed = 0
         while k < substeps:
             k = stepper.run(k, not (resumed or self._sticky), plan, track, self._ped_rows, index, gains)

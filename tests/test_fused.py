@@ -107,3 +107,18 @@ def test_installed_callback_means_python_substeps(monkeypatch):
         mujoco.set_mjcb_control(None)
     assert not fused.callbacks_installed() and sim.fused  # fused again from the next period
     assert len(set(times)) == config.timing.substeps + 1  # every physics step's start, and the sync
+
+
+def test_period_without_a_command_runs_in_python():
+    """Right after a reset (no apply_command: a one-step plan, no crowd rows) the period is the Python loop's."""
+    config = load_task("stage7")
+    states = []
+    for fused_substeps in (True, False):
+        sim = NavSim(config, fused=fused_substeps)
+        physics = sim.make_physics()
+        sim.initialize_episode(physics, np.random.default_rng(3))
+        physics.data.qvel[:2] = 0.4, -0.2
+        sim.run_period(physics)
+        states.append((physics.data.qpos.copy(), physics.data.mocap_pos.copy(), physics.data.time))
+    for a, b in zip(*states, strict=True):
+        np.testing.assert_array_equal(a, b)
