@@ -288,7 +288,8 @@ class NavSim:
         robot = self.robot
         plan = robot.plan_rows(physics) if stepper is not None else None
         track = self._crowd_track if self._num_peds else np.zeros((substeps, 0, 2))
-        if stepper is None or len(plan) != substeps or len(track) < substeps:  # no apply_command yet
+        rows = self._ped_rows
+        if stepper is None or len(plan) != substeps or len(track) < substeps or track.shape[1] != len(rows):
             model, data = physics.model.ptr, physics.data.ptr
             for _ in range(substeps - self._substep):
                 self.before_substep(physics)
@@ -297,7 +298,7 @@ class NavSim:
         index, gains = robot.tracking_arrays(physics)
         k = resumed = 0
         while k < substeps:
-            k = stepper.run(k, not (resumed or self._sticky), plan, track, self._ped_rows, index, gains)
+            k = stepper.run(k, not (resumed or self._sticky), plan, track, rows, index, gains)
             if k < substeps:  # the previous step found contacts: note them as before_substep does
                 self._sticky = self._contact_kind(stepper.data)
                 resumed = not self._sticky
