@@ -240,8 +240,8 @@ class NavSim:
         """Places the pedestrians for the coming physics step, then writes the tracking force."""
         data = physics.data.ptr
         k = self._substep
-        if k and data.ncon and not self._sticky:
-            self._sticky = self._contact_kind(data)
+        if k:
+            self._note_contacts(data)
         if self._num_peds:
             if k >= len(self._crowd_track):  # more substeps than a period: one more crowd step
                 self._crowd_track = self._advance_crowd(1, [data.qpos[self._qpos].copy()])
@@ -300,7 +300,7 @@ class NavSim:
         while k < substeps:
             k = stepper.run(k, not (resumed or self._sticky), plan, track, rows, index, gains)
             if k < substeps:  # the previous step found contacts: note them as before_substep does
-                self._sticky = self._contact_kind(stepper.data)
+                self._note_contacts(stepper.data)
                 resumed = not self._sticky
         robot.advance_substeps(substeps)
         self._substep = substeps
@@ -345,9 +345,13 @@ class NavSim:
         the constraint solver resolved within that substep still counts).
         """
         data = physics.data.ptr
+        self._note_contacts(data)
+        mujoco.mj_step1(physics.model.ptr, data)
+
+    def _note_contacts(self, data: mujoco.MjData) -> None:
+        """Keeps the kind of a robot contact among the current contacts, unless one is kept already."""
         if data.ncon and not self._sticky:
             self._sticky = self._contact_kind(data)
-        mujoco.mj_step1(physics.model.ptr, data)
 
     # ------------------------------------------------------------------ reading
     def robot_state(self, physics: mjcf.Physics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

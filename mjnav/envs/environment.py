@@ -73,10 +73,9 @@ class NavEnvironment(composer.Environment):
         True when nothing but the task takes part in a step (no entity or extra step hooks),
         its substeps fuse, physics errors raise and there is no time limit.
         """
-        hooks = (self._hooks._before_step, self._hooks._after_step)
         return (not self._physics.legacy_step and self._raise_exception_on_physics_error
                 and self._time_limit == float("inf") and self._can_fuse()
-                and not any(hook.entity_hooks or hook.extra_hooks for hook in hooks))
+                and self._only_task_hooks(self._hooks._before_step, self._hooks._after_step))
 
     def step_task(self, action) -> None:
         """One control step through the task's own hooks, without composer's step machinery.
@@ -101,7 +100,11 @@ class NavEnvironment(composer.Environment):
         """Whether the task may run the step's substeps at once: it offers to, no other substep hooks."""
         if not getattr(self._task, "fused_substeps", False):
             return False
-        hooks = (self._hooks._before_substep, self._hooks._after_substep)
+        return self._only_task_hooks(self._hooks._before_substep, self._hooks._after_substep)
+
+    @staticmethod
+    def _only_task_hooks(*hooks) -> bool:
+        """Whether none of composer's hook lists ``hooks`` holds an entity or extra hook."""
         return not any(hook.entity_hooks or hook.extra_hooks for hook in hooks)
 
     def _raise_warnings(self, physics, warnings: np.ndarray, before: bytes) -> None:
