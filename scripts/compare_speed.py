@@ -51,7 +51,8 @@ def export_revision(ref: str, folder: Path) -> str:
     except subprocess.CalledProcessError as err:
         raise ConfigError(f"ref={ref!r}: git archive failed: {err.stderr.decode().strip()}") from None
     with tarfile.open(fileobj=BytesIO(archive)) as tar:
-        tar.extractall(folder, filter="tar")
+        # Our own repository's archive; the extraction filter exists from Python 3.11.4 on.
+        tar.extractall(folder, **({"filter": "tar"} if hasattr(tarfile, "tar_filter") else {}))
     (folder / "mjnav").rename(folder / "mjnav_ref")
     for path in (folder / "mjnav_ref").rglob("*.py"):
         path.write_text(_IMPORT.sub("mjnav_ref", path.read_text()))
