@@ -1,7 +1,11 @@
 # Quick start (see README):  make train task=stage6   |   make test
 # Each target creates .venv on first use (Python 3.11) and installs mjnav into it.
 
-PYTHON ?= python3.11
+# The interpreter of .venv: PYTHON if given; else the distribution's /usr/bin/python3.11 where it
+# can make a venv (Debian and Ubuntu build it with PGO and LTO; mjnav's step is mostly interpreted
+# glue and ran 1.08-1.1x faster on it than on a default pyenv build, which has neither: see
+# docs/results.md); else python3.11 on PATH.
+PYTHON ?= $(or $(shell /usr/bin/python3.11 -c "import ensurepip, venv" 2>/dev/null && echo /usr/bin/python3.11),python3.11)
 VENV   ?= .venv
 # The CPU build where a local wheel provides it (our dev and CI machines); from PyPI on Linux this
 # pin is the default (CUDA) build. On a GPU box: TORCH=torch args="train.device=cuda".

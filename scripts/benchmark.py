@@ -23,6 +23,7 @@ the bare physics rate measured in the same rounds, which is what compares across
 from __future__ import annotations
 
 import os
+import platform
 import sys
 import time
 
@@ -168,6 +169,8 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     print(f"## {config.name}: {config.crowd.count} pedestrians, {config.obstacles.count} obstacles, "
           f"LiDAR backend {config.lidar.backend}, MPC solver {config.mpc.solver}; "
           f"medians of {rounds} interleaved rounds (min-max)\n")
+    print(f"Python {platform.python_version()} ({sys.executable}, {platform.python_compiler()}); "
+          f"{os.cpu_count()} CPUs\n")
     print(f"bare mj_step: {spread(bare)} /s -> {periods:,.0f} control periods/s ({substeps} substeps)\n")
     print("| one environment, random actions | steps/s | us/step | x bare physics periods |\n|---|---|---|---|")
     for name, values in singles.items():
