@@ -1,7 +1,7 @@
 """Paired speed comparison of this checkout against another git revision, in one process.
 
     python scripts/compare_speed.py ref=HEAD~3 [task=stage7] [blocks=40] [block_steps=300]
-                                    [adapter=false] [num_envs=16] [task.crowd.count=25]
+                                    [adapter=false] [num_envs=16] [dm_env=false] [task.crowd.count=25]
 
 This machine's speed drifts by up to 2x over minutes, so two separate benchmark runs cannot tell
 which version is faster. Here the other revision's ``mjnav`` package is exported (``git archive``)
@@ -9,7 +9,8 @@ into a temporary folder as ``mjnav_ref``, with its imports rewritten. One enviro
 ``adapter=true``, one ``NavVecEnv`` on all cores) is built from each version. Blocks of
 random-action steps then alternate between the two, swapping the order every block, and the
 script prints the median and interquartile range of the paired ratio new / ref. The same task
-overrides apply to both versions.
+overrides apply to both versions. One environment is the Gymnasium environment; ``dm_env=true``
+times ``mjnav.make_env``'s ``composer.Environment.step`` instead.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ SCRIPT_KEYS = {
     "blocks": 40,
     "block_steps": 300,
     "adapter": False,
+    "dm_env": False,
     "num_envs": 16,
     "seed": 0,
 }
@@ -72,6 +74,22 @@ def _one_env(package: str, config_args: tuple[str, list[str]], seed: int, block_
     def block() -> int:
         for a in actions:
             if any(env.step(a)[2:4]):
+                env.reset()
+        return len(actions)
+
+    return block, env.close
+
+
+def _one_dm_env(package: str, config_args: tuple[str, list[str]], seed: int, block_steps: int):
+    """A block of ``block_steps`` random-action steps of ``make_env``'s environment, and its closer."""
+    load_task = importlib.import_module(f"{package}.config").load_task
+    env = importlib.import_module(f"{package}.envs.factory").make_env(load_task(*config_args), seed=seed)
+    env.reset()
+    actions = np.random.default_rng(seed).normal(size=(block_steps, 4)).astype(np.float32)
+
+    def block() -> int:
+        for a in actions:
+            if env.step(a).last():
                 env.reset()
         return len(actions)
 
@@ -120,6 +138,8 @@ def main(argv: list[str]) -> None:
         for name, package in (("ref", "mjnav_ref"), ("new", "mjnav")):
             if opts["adapter"]:
                 block, close = _adapter(package, config_args, seed, steps, int(opts["num_envs"]))
+            elif opts["dm_env"]:
+                block, close = _one_dm_env(package, config_args, seed, steps)
             else:
                 block, close = _one_env(package, config_args, seed, steps)
             builds[name] = block
@@ -130,7 +150,8 @@ def main(argv: list[str]) -> None:
             for close in closers:
                 close()
     ratio = rates["new"] / rates["ref"]
-    what = f"adapter, {opts['num_envs']} envs, all cores" if opts["adapter"] else "one environment"
+    what = (f"adapter, {opts['num_envs']} envs, all cores" if opts["adapter"]
+            else "one composer environment (dm_env)" if opts["dm_env"] else "one Gymnasium environment")
     print(
         f"{opts['task']}, {what}: {ref} median {np.median(rates['ref']):,.0f} steps/s, "
         f"this checkout {np.median(rates['new']):,.0f} steps/s"

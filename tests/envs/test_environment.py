@@ -1,5 +1,6 @@
 """NavEnvironment steps exactly as composer.Environment and still reports an invalid physics state."""
 
+import dm_env
 import numpy as np
 import pytest
 from dm_control import composer
@@ -22,20 +23,22 @@ def _make(cls, **kwargs):
 
 
 def _rollout(env, steps: int = 40) -> list:
+    """Step types, observations, rewards, discounts (across episode ends: composer resets after LAST)."""
     actions = np.random.default_rng(0).normal(size=(steps, 4)).astype(np.float32)
     out = [env.reset().observation["observation"].copy()]
     for a in actions:
         ts = env.step(a)
-        out += [ts.observation["observation"].copy(), ts.reward, ts.discount]
+        out += [int(ts.step_type), ts.observation["observation"].copy(), ts.reward, ts.discount]
     out.append(env.physics.data.qpos.copy())
     return out
 
 
 @pytest.mark.parametrize("legacy_step", [False, True])
 def test_same_rollout_as_composer(legacy_step: bool) -> None:
-    """Observations, rewards, discounts and the final state match composer's bit for bit."""
-    ours = _rollout(_make(NavEnvironment, legacy_step=legacy_step))
-    theirs = _rollout(_make(composer.Environment, legacy_step=legacy_step))
+    """Over several episodes, everything a step returns and the final state match composer's bit for bit."""
+    ours = _rollout(_make(NavEnvironment, legacy_step=legacy_step), steps=240)
+    theirs = _rollout(_make(composer.Environment, legacy_step=legacy_step), steps=240)
+    assert ours[1:-1:4].count(int(dm_env.StepType.LAST)) >= 2  # episodes ended and restarted
     assert len(ours) == len(theirs)
     for a, b in zip(ours, theirs):
         np.testing.assert_array_equal(a, b)
