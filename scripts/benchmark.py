@@ -11,7 +11,9 @@ Prints, all from one run:
     region, action mapping, MPC, reward, observation, rest = composer and wrapper overhead);
   * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments (default: the training
     default, ``train.num_envs``) with 1, 2 and all-core workers
-    (this process stepping the first block), and all-core worker processes with this process idle.
+    (this process stepping the first block), and all-core worker processes with this process idle,
+    with where an adapter step's time goes: this process's own block, its wait for the worker
+    processes (the slower block), the adapter's bookkeeping, and the loop outside the adapter.
 
 This machine's speed drifts by up to 2x within minutes, so every configuration is built first
 and then timed in ``rounds`` rounds: each round runs one block of each configuration (``steps``
@@ -97,29 +99,50 @@ class SingleEnv:
         return parts
 
 
-def vec_env(config, num_envs: int, workers: int, steps: int, seed: int, step_in_main: bool):
-    """The rsl-rl adapter with random actions: a block of ``steps`` steps of all envs, and a closer."""
-    import torch
+class VecBench:
+    """The rsl-rl adapter with random actions; accumulates where its steps' time goes."""
 
-    from mjnav.envs.vec_env import NavVecEnv
-    from mjnav.train.runner import TaskEnvFactory
+    def __init__(self, config, num_envs: int, workers: int, steps: int, seed: int, step_in_main: bool) -> None:
+        import torch
 
-    torch.set_num_threads(1)
-    env = NavVecEnv(TaskEnvFactory(config), num_envs=num_envs, seed=seed, workers=workers,
-                    max_episode_length=config.timing.episode_steps, step_in_main=step_in_main)
-    gen = torch.Generator().manual_seed(seed)
+        from mjnav.envs.vec_env import NavVecEnv
+        from mjnav.train.runner import TaskEnvFactory
 
-    def block() -> int:
-        for _ in range(steps):
-            env.step(torch.randn(num_envs, 4, generator=gen))
-        return steps * num_envs
+        torch.set_num_threads(1)
+        self.env = NavVecEnv(TaskEnvFactory(config), num_envs=num_envs, seed=seed, workers=workers,
+                             max_episode_length=config.timing.episode_steps, step_in_main=step_in_main)
+        self.steps, self.num_envs = steps, num_envs
+        self.gen = torch.Generator().manual_seed(seed)
+        self.sums = dict.fromkeys(("own", "wait", "step", "total"), 0.0)  # ms over timed blocks
+        self.count = 0
+        try:
+            self.block()  # warm-up
+        except BaseException:
+            self.env.close()
+            raise
+        self.sums, self.count = dict.fromkeys(self.sums, 0.0), 0
 
-    try:
-        block()  # warm-up
-    except BaseException:
-        env.close()
-        raise
-    return block, env.close
+    def block(self) -> int:
+        """``steps`` adapter steps of all environments."""
+        import torch
+
+        sums = self.sums
+        start = time.perf_counter()
+        for _ in range(self.steps):
+            log = self.env.step(torch.randn(self.num_envs, 4, generator=self.gen))[3]["log"]
+            sums["own"] += log["perf/own_block_ms"]
+            sums["wait"] += log["perf/wait_ms"]
+            sums["step"] += log["perf/env_step_ms"]
+        sums["total"] += 1e3 * (time.perf_counter() - start)
+        self.count += self.steps
+        return self.steps * self.num_envs
+
+    def split(self) -> dict[str, float]:
+        """ms per adapter step: own block, wait for the worker processes, bookkeeping, outside the adapter."""
+        s, n = self.sums, max(self.count, 1)
+        return {"own block": s["own"] / n, "wait for worker processes": s["wait"] / n,
+                "adapter bookkeeping": (s["step"] - s["own"] - s["wait"]) / n,
+                "outside the adapter (random actions)": (s["total"] - s["step"]) / n}
 
 
 def adapter_rows(cores: int) -> list[tuple[str, int, bool]]:
@@ -141,15 +164,18 @@ def main(argv: list[str]) -> None:
     blocks: dict[str, Block] = {"bare": bare_physics(singles["task"].env, 5 * int(opts["steps"]))}
     blocks.update({f"single {name}": single.block for name, single in singles.items()})
     closers = [single.env.close for single in singles.values()]
+    vecs: dict[str, VecBench] = {}
     try:
         for label, workers, in_main in adapter_rows(os.cpu_count() or 1):
-            blocks[label], close = vec_env(config, num_envs, workers, int(opts["vec_steps"]), seed, in_main)
-            closers.append(close)
+            vecs[label] = VecBench(config, num_envs, workers, int(opts["vec_steps"]), seed, in_main)
+            blocks[label] = vecs[label].block
+            closers.append(vecs[label].env.close)
         rates = time_rounds(blocks, rounds)
     finally:
         for close in closers:
             close()
     _print(config, rates, {name: single.parts() for name, single in singles.items()}, num_envs, rounds)
+    _print_split({label: vec.split() for label, vec in vecs.items()})
 
 
 _SINGLE_LABELS = {"composer": "composer.Environment.step (dm_env)",
@@ -186,6 +212,15 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     print(f"\n| adapter: {num_envs} envs | env steps/s | x bare physics periods |\n|---|---|---|")
     for label, values in rates.items():
         print(f"| {label} | {spread(values)} | {np.median(values) / periods:.3f} |")
+
+
+def _print_split(splits: dict[str, dict[str, float]]) -> None:
+    """Where an adapter step's time goes, per adapter configuration (means over the timed blocks)."""
+    parts = list(next(iter(splits.values())))
+    print("\n| adapter step, ms (share) | " + " | ".join(parts) + " |\n|---|" + "---|" * len(parts))
+    for label, split in splits.items():
+        total = sum(split.values()) or 1.0
+        print(f"| {label} | " + " | ".join(f"{split[p]:.2f} ({split[p] / total:.0%})" for p in parts) + " |")
 
 
 if __name__ == "__main__":

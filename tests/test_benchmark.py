@@ -29,3 +29,19 @@ def test_single_env_parts_add_up_to_the_measured_time() -> None:
     assert {"physics", "lidar", "region", "mpc", "observation", "reward"} <= set(parts)
     assert all(parts[k] > 0 for k in ("physics", "lidar", "region", "mpc"))
     assert np.isclose(sum(parts.values()), 1e6 * single.total_time / 40)
+
+
+def test_adapter_split_adds_up_to_the_measured_time() -> None:
+    """The adapter's own block, wait, bookkeeping and outside parts add up to the timed blocks."""
+    vec = _script().VecBench(load_task("stage1"), num_envs=2, workers=0, steps=5, seed=0, step_in_main=True)
+    try:
+        assert vec.count == 0  # the warm-up block is not counted
+        vec.block()
+        vec.block()
+        split = vec.split()
+    finally:
+        vec.env.close()
+    assert vec.count == 10
+    assert split["own block"] > 0.0 and split["adapter bookkeeping"] > 0.0
+    assert split["wait for worker processes"] < 0.1 * split["own block"]  # no worker processes here
+    assert np.isclose(sum(split.values()), vec.sums["total"] / 10)

@@ -14,7 +14,10 @@ truncates when ``episode_length_buf`` reaches ``max_episode_length`` (the runner
 buffer) and reports ``extras["time_outs"]`` and ``extras["log"]``. Log keys contain a ``/``, so
 rsl-rl's logger writes them unchanged (no ``Episode/`` prefix): ``episode/<metric>`` holds one value
 per episode finished at this step, ``reward/<term>`` the per-step mean over all environments,
-``mpc/<stat>`` one value per reporting environment, ``perf/env_step_ms`` the step's wall time.
+``mpc/<stat>`` one value per reporting environment, ``perf/env_step_ms`` the step's wall time,
+``perf/own_block_ms`` the part of it this process spent stepping its own block (0 when it steps
+none) and ``perf/wait_ms`` the part it then waited for the worker processes; the rest of a step
+is the adapter's own bookkeeping.
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
@@ -166,11 +169,22 @@ class NavVecEnv(VecEnv):
         self.max_episode_length = int(limit)
 
     def _call(self, command: str, arg: Any = None) -> list[Any]:
-        """Send ``command`` to every worker, then collect the replies; close everything on failure."""
+        """Send ``command`` to every worker, then collect the replies; close everything on failure.
+
+        Notes in ``_split`` the seconds this process spent on its own block (the last handle, when
+        local; 0 otherwise) and the seconds it then waited for the replies.
+        """
         try:
-            for handle in self._handles:
+            *others, last = self._handles
+            for handle in others:
                 handle.request(command, arg)
-            return [handle.result(self.step_timeout_s) for handle in self._handles]
+            start = time.perf_counter()
+            last.request(command, arg)
+            ready = time.perf_counter()
+            replies = [handle.result(self.step_timeout_s) for handle in self._handles]
+            own = ready - start if isinstance(last, _LocalHandle) else 0.0
+            self._split = (own, time.perf_counter() - ready)
+            return replies
         except BaseException:
             self.close()
             raise
@@ -218,6 +232,7 @@ class NavVecEnv(VecEnv):
         self._returns[done], self._steps[done] = 0.0, 0
         self.episode_length_buf = torch.from_numpy(np.where(done, 0, lengths)).to(self.device)
         log["perf/env_step_ms"] = 1e3 * (time.perf_counter() - start)
+        log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
         extras = {
             "time_outs": torch.from_numpy(truncated).to(self.device),
             "outcomes": torch.from_numpy(outcome).to(self.device),

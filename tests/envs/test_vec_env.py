@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
 
 import gymnasium as gym
 import numpy as np
@@ -23,13 +24,15 @@ class FakeNavEnv(gym.Env):
     """
 
     def __init__(
-        self, limit: int = 20, fail_step: int | None = None, die: bool = False, noise: float = 0.05
+        self, limit: int = 20, fail_step: int | None = None, die: bool = False, noise: float = 0.05,
+        delay_s: float = 0.0,
     ) -> None:
-        """Spaces as the real env; ``spec.max_episode_steps`` = ``limit``."""
+        """Spaces as the real env; ``spec.max_episode_steps`` = ``limit``; each step sleeps ``delay_s``."""
         self.spec = gym.envs.registration.EnvSpec("FakeNav-v0", max_episode_steps=limit)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_DIM,), np.float32)
         self.action_space = gym.spaces.Box(-np.inf, np.inf, (ACT_DIM,), np.float32)
         self.limit, self.fail_step, self.die, self.noise = limit, fail_step, die, noise
+        self.delay_s = delay_s
         self._pos = np.zeros(2)
         self._t = 0
         self.total_steps = 0
@@ -52,6 +55,7 @@ class FakeNavEnv(gym.Env):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Move by the squashed action (plus noise); fail on request."""
         self.total_steps += 1
+        time.sleep(self.delay_s)
         if self.fail_step is not None and self.total_steps >= self.fail_step:
             if self.die:
                 os._exit(3)
@@ -79,7 +83,7 @@ class FakeNavEnv(gym.Env):
 class FakeFactory:
     """Picklable ``env_fn(index)``; ``fail_env`` raises (or dies) at its ``fail_step``-th step.
 
-    ``fail_step=0`` fails while building.
+    ``fail_step=0`` fails while building; ``slow_env`` sleeps ``delay_s`` in every step.
     """
 
     limit: int = 20
@@ -87,13 +91,16 @@ class FakeFactory:
     fail_step: int = 3
     die: bool = False
     noise: float = 0.05
+    slow_env: int | None = None
+    delay_s: float = 0.0
 
     def __call__(self, index: int) -> FakeNavEnv:
         """Build env ``index``."""
         failing = index == self.fail_env
         if failing and self.fail_step == 0:
             raise ValueError(f"fake env {index} refused to build")
-        return FakeNavEnv(self.limit, self.fail_step if failing else None, self.die, self.noise)
+        delay = self.delay_s if index == self.slow_env else 0.0
+        return FakeNavEnv(self.limit, self.fail_step if failing else None, self.die, self.noise, delay)
 
 
 def _rollout(env: NavVecEnv, steps: int, seed: int = 0) -> list[tuple]:
@@ -186,6 +193,28 @@ def test_log_keys(workers: dict) -> None:
     rates = [np.mean(seen[f"episode/{k}"]) for k in ("success", "collision", "timeout")]
     assert abs(sum(rates) - 1.0) < 1e-6
     assert all(k.count("/") == 1 and not k.startswith("/") for k in seen)
+
+
+@pytest.mark.parametrize("slow_env", [0, 1])
+def test_step_time_split_names_the_slow_side(slow_env: int) -> None:
+    """perf/own_block_ms covers this process's block, perf/wait_ms the wait for the worker's.
+
+    Environment 0 is stepped here, environment 1 by the worker process; one of them sleeps 40 ms.
+    """
+    factory = FakeFactory(limit=1000, slow_env=slow_env, delay_s=0.04)
+    with NavVecEnv(factory, num_envs=2, seed=0, workers=2) as env:
+        logs = [env.step(torch.zeros(2, ACT_DIM))[3]["log"] for _ in range(4)]
+    own, wait, total = (np.median([log[f"perf/{k}_ms"] for log in logs]) for k in ("own_block", "wait", "env_step"))
+    slow, fast = (own, wait) if slow_env == 0 else (wait, own)
+    assert slow >= 30.0 and fast < 20.0
+    assert own + wait <= total
+
+
+def test_step_time_split_in_process() -> None:
+    """With every environment in this process, a step is its own block and no wait."""
+    with NavVecEnv(FakeFactory(slow_env=1, delay_s=0.02), num_envs=2, seed=0, workers=0) as env:
+        log = env.step(torch.zeros(2, ACT_DIM))[3]["log"]
+    assert log["perf/own_block_ms"] >= 15.0 and log["perf/wait_ms"] < 1.0
 
 
 def test_same_seed_same_rollouts(workers: dict) -> None:
