@@ -113,6 +113,7 @@ class NavVecEnv(VecEnv):
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
         self._closed = False
+        self._split = (0.0, 0.0)  # seconds of the last call: own block, wait for the worker processes
         try:
             self._start(env_fn, start_method, start_timeout_s, max_episode_length)
         except BaseException:
