@@ -135,6 +135,8 @@ def test_two_iterations_write_checkpoints_and_events(tiny: TrainConfig, tmp_path
         "reward/approach",
         "mpc/fallback",
         "perf/env_step_ms",
+        "perf/own_block_ms",
+        "perf/wait_ms",
     } <= tags
     assert "episode/success" in tags and not any(t.startswith("Episode/") for t in tags)
 
