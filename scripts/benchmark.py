@@ -114,13 +114,13 @@ class VecBench:
         self.steps, self.num_envs = steps, num_envs
         self.gen = torch.Generator().manual_seed(seed)
         self.sums = dict.fromkeys(("own", "wait", "step", "total"), 0.0)  # ms over timed blocks
-        self.count = 0
+        self.total_steps = 0
         try:
             self.block()  # warm-up
         except BaseException:
             self.env.close()
             raise
-        self.sums, self.count = dict.fromkeys(self.sums, 0.0), 0
+        self.sums, self.total_steps = dict.fromkeys(self.sums, 0.0), 0
 
     def block(self) -> int:
         """``steps`` adapter steps of all environments."""
@@ -134,12 +134,12 @@ class VecBench:
             sums["wait"] += log["perf/wait_ms"]
             sums["step"] += log["perf/env_step_ms"]
         sums["total"] += 1e3 * (time.perf_counter() - start)
-        self.count += self.steps
+        self.total_steps += self.steps
         return self.steps * self.num_envs
 
-    def split(self) -> dict[str, float]:
+    def parts(self) -> dict[str, float]:
         """ms per adapter step: own block, wait for the worker processes, bookkeeping, outside the adapter."""
-        s, n = self.sums, max(self.count, 1)
+        s, n = self.sums, max(self.total_steps, 1)
         return {"own block": s["own"] / n, "wait for worker processes": s["wait"] / n,
                 "adapter bookkeeping": (s["step"] - s["own"] - s["wait"]) / n,
                 "outside the adapter (random actions)": (s["total"] - s["step"]) / n}
@@ -175,7 +175,7 @@ def main(argv: list[str]) -> None:
         for close in closers:
             close()
     _print(config, rates, {name: single.parts() for name, single in singles.items()}, num_envs, rounds)
-    _print_split({label: vec.split() for label, vec in vecs.items()})
+    _print_split({label: vec.parts() for label, vec in vecs.items()})
 
 
 _SINGLE_LABELS = {"composer": "composer.Environment.step (dm_env)",

@@ -16,15 +16,20 @@ def test_adapter_rows_cover_one_two_and_all_cores() -> None:
     assert [(w, main) for _, w, main in bench.adapter_rows(1)] == [(1, True), (2, True), (2, False)]
 
 
+def _two_timed_blocks(bench) -> dict[str, float]:
+    """Two blocks after the uncounted warm-up; ``bench.parts()``, with its environment closed."""
+    try:
+        assert bench.total_steps == 0  # the warm-up block is not counted
+        bench.block()
+        bench.block()
+        return bench.parts()
+    finally:
+        bench.env.close()
+
+
 def test_single_env_parts_add_up_to_the_measured_time() -> None:
     single = _script().SingleEnv(load_task("stage1"), steps=20, seed=0)
-    try:
-        assert single.total_steps == 0  # the warm-up block is not counted
-        single.block()
-        single.block()
-        parts = single.parts()
-    finally:
-        single.env.close()
+    parts = _two_timed_blocks(single)
     assert single.total_steps == 40
     assert {"physics", "lidar", "region", "mpc", "observation", "reward"} <= set(parts)
     assert all(parts[k] > 0 for k in ("physics", "lidar", "region", "mpc"))
@@ -34,14 +39,8 @@ def test_single_env_parts_add_up_to_the_measured_time() -> None:
 def test_adapter_split_adds_up_to_the_measured_time() -> None:
     """The adapter's own block, wait, bookkeeping and outside parts add up to the timed blocks."""
     vec = _script().VecBench(load_task("stage1"), num_envs=2, workers=0, steps=5, seed=0, step_in_main=True)
-    try:
-        assert vec.count == 0  # the warm-up block is not counted
-        vec.block()
-        vec.block()
-        split = vec.split()
-    finally:
-        vec.env.close()
-    assert vec.count == 10
+    split = _two_timed_blocks(vec)
+    assert vec.total_steps == 10
     assert split["own block"] > 0.0 and split["adapter bookkeeping"] > 0.0
     assert split["wait for worker processes"] < 0.1 * split["own block"]  # no worker processes here
     assert np.isclose(sum(split.values()), vec.sums["total"] / 10)
