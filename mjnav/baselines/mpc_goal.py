@@ -4,7 +4,8 @@ Every control step, in the robot frame:
 
 * ``Q_l`` = the goal when it lies inside the convex free-space polygon; otherwise the polygon's
   boundary point in the goal direction scaled back by ``safety`` (0.9), so it stays inside.
-  When the region failed (spec §3: success = 0) the fallback polyline (every 6th beam's shrunk
+  A recovered region (see :mod:`mjnav.geometry.region`) is used like a found one; when
+  there is no polygon at all (spec §3: success = 0, ``on_failure='paper'``) the fallback polyline (every 6th beam's shrunk
   point) gives the boundary distance instead.
 * ``Q_s`` = the point on the short-term circle (radius R_s of spec §4, from
   :func:`mjnav.control.action.radii`) towards ``Q_l``, or ``Q_l`` itself when it is closer.
@@ -68,6 +69,7 @@ class MpcGoalPlanner:
         self.debug: dict[str, np.ndarray] = {}
         self._mpc: Mpc | None = None
         self._action = ActionConfig()
+        self._keep_clear = True
         self.limits = Limits()
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
@@ -77,6 +79,7 @@ class MpcGoalPlanner:
             self._mpc = Mpc(config.mpc)
         self._mpc.reset()
         self._action = config.action
+        self._keep_clear = config.region.on_failure == "recover"
         self.limits = Limits.from_task(config)
         self.debug = {}
 
@@ -88,8 +91,10 @@ class MpcGoalPlanner:
             r_s, _ = radii(v, a, self._action)
             goal = np.asarray(inp.goal) - inp.position
             q_s, q_l, inside = reference_points(inp.region, goal, r_s, self.safety)
-            polygon = inp.region.vertices if inp.region.success else None
-            result = self._mpc.solve(np.stack([np.zeros(2), v, a]), q_s, q_l, polygon, inside)
+            region = inp.region
+            planes = (region.normals, region.offsets) if region.has_polygon else None
+            result = self._mpc.solve_unchecked(np.stack([np.zeros(2), v, a]), q_s, q_l, planes, inside,
+                                               self._keep_clear)
         except (ValueError, FloatingPointError):
             self.stats["failures"] += 1
             return brake(np.nan_to_num(v), np.nan_to_num(a), self.limits)

@@ -18,7 +18,8 @@ Everything here is in the robot frame (metres, radians, SI).
 * Goal inside the polygon -> the MPC reference is the goal (:attr:`ActionPoints.q_l_ref`); the
   network's own point stays in :attr:`ActionPoints.q_l` (observation, feasibility reward).
 
-Failed region (``region.success`` False): the action polygon is the fallback star polygon (every
+A recovered region (``region.recovered``, see :mod:`mjnav.geometry.region`) is used like a found
+one. Failed region without a polygon (``region.has_polygon`` False): the action polygon is the fallback star polygon (every
 6th beam's shrunk point, not convex). Rays are then cast against that closed polyline (first
 crossing) and the goal test is an even-odd point-in-polygon test on it.
 
@@ -182,7 +183,7 @@ def map_action_values(values: Sequence[float], region: Region, config: ActionCon
     """
     cfg = config if config is not None else _DEFAULT
     out = _map_kernel(
-        *values, region.success, region.normals, region.offsets, region.boundary_xy,
+        *values, region.has_polygon, region.normals, region.offsets, region.boundary_xy,
         cfg.heading == "velocity", cfg.long_circle == "code", cfg.jerk_max * math.sqrt(2.0), cfg.t_c,
         cfg.long_time, cfg.short_scale, cfg.long_min_radius,
     )  # fmt: skip
@@ -306,7 +307,7 @@ def _validate(
 
 def boundary_distance(region: Region, origin: np.ndarray, direction: np.ndarray) -> float:
     """Distance along the ray to the action polygon's boundary (convex, or the fallback polyline)."""
-    if region.success:
+    if region.has_polygon:
         return ray_convex_distance(origin, direction, region.normals, region.offsets)
     hit = ray_polyline_distance(origin, direction, region.boundary_xy)
     return 0.0 if math.isinf(hit) else hit
@@ -314,6 +315,6 @@ def boundary_distance(region: Region, origin: np.ndarray, direction: np.ndarray)
 
 def goal_inside(region: Region, goal: np.ndarray) -> bool:
     """Whether ``goal`` (robot frame, metres) lies in the region (or its fallback star polygon)."""
-    if region.success:
+    if region.has_polygon:
         return bool(point_in_halfplanes(goal, region.normals, region.offsets))
     return bool(points_in_polygon(goal, region.boundary_xy))

@@ -23,9 +23,20 @@ Conventions and documented choices:
   shrunk scan point strictly inside.
 * Step 6 also applies when more than ``num_points`` vertices remain (``max_vertices`` = 61 would
   otherwise leave 61 vertices for 60 boundary points); the thinned rule yields at most 60.
-* On failure the boundary is every ``n/num_points``-th beam's shrunk point (beams 0, 6, 12, ...
-  for 360 beams): a star polygon, not convex; ``vertices`` is then empty and the MPC must run
-  without the polygon constraint (:attr:`Region.constraint_polygon` is ``None``).
+* On failure (``on_failure='paper'``) the boundary is every ``n/num_points``-th beam's shrunk
+  point (beams 0, 6, 12, ... for 360 beams): a star polygon, not convex; ``vertices`` is then
+  empty and the MPC runs without the polygon constraint (:attr:`Region.constraint_polygon` is
+  ``None``). This is the paper's behaviour, and it lets a robot within R_inf of an obstacle
+  press on into it.
+* ``on_failure='recover'`` (default): the scan still fails (``success`` False, the observation's
+  flag stays 0, ``status`` names the failure), but the region is recomputed with less inflation
+  so the MPC keeps a convex constraint that holds the robot clear of every scan point
+  (``recovered`` True, ``inflation`` the value used): first with ``recover_inflation`` (0.275 m =
+  robot radius 0.225 + one noise σ), then with ``recover_floor`` (0.235 m), each only while the
+  smallest range exceeds it by ``recover_gap``. The levels are fixed, not taken from the current
+  clearance, so a robot cannot ratchet closer step by step. Below the floor there is no polygon
+  and the task brakes instead of planning unconstrained
+  (:meth:`mjnav.control.mpc.Mpc.solve_unchecked` with ``keep_clear``).
 
 The pipeline is jitted with numba (``cache=True``); call :func:`warm_up` once at start-up to
 pay the compile/cache-load cost (seconds on a cold cache) outside the control loop.
@@ -35,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Literal
 
 import numpy as np
 from numba import njit
@@ -42,7 +54,9 @@ from numba import njit
 from mjnav.geometry.polygon import graham_scan, monotone_chain
 from mjnav.schema import check as _check
 
-__all__ = ["STATUS_NAMES", "Region", "RegionConfig", "RegionFinder", "compute_region", "warm_up"]
+__all__ = ["STATUS_NAMES", "Region", "RegionConfig", "RegionFinder", "compute_region", "scan_polygon", "warm_up"]
+
+OnFailure = Literal["recover", "paper"]
 
 STATUS_NAMES = (
     "ok",
@@ -68,6 +82,11 @@ class RegionConfig:
         max_vertices: Thinning threshold on the polygon's vertex count.
         max_range: LiDAR range; readings are clipped into ``[0, max_range]``, metres.
         push: Slack added to every pushed half-plane (spec step 4), metres.
+        on_failure: ``recover`` (default: a reduced-inflation convex region, see the module
+            docstring) or ``paper`` (no polygon, the MPC runs unconstrained).
+        recover_inflation: First inflation of the recovery ladder, metres.
+        recover_floor: Second and last inflation of the recovery ladder, metres.
+        recover_gap: A ladder level is tried only while the smallest range exceeds it by this, metres.
     """
 
     inflation: float = 0.325
@@ -76,6 +95,10 @@ class RegionConfig:
     max_vertices: int = 61
     max_range: float = 10.0
     push: float = 1e-6
+    on_failure: OnFailure = "recover"
+    recover_inflation: float = 0.275
+    recover_floor: float = 0.235
+    recover_gap: float = 0.01
 
     def __post_init__(self) -> None:
         _check(
@@ -90,6 +113,10 @@ class RegionConfig:
         _check(self.num_points >= 3, "num_points", "must be >= 3")
         _check(self.max_vertices >= 3, "max_vertices", "must be >= 3")
         _check(math.isfinite(self.push) and 0.0 <= self.push < 1e-3, "push", "must be in [0, 1e-3)")
+        _check(self.on_failure in ("recover", "paper"), "on_failure", "must be 'recover' or 'paper'")
+        for name in ("recover_inflation", "recover_gap", "recover_floor"):
+            value = getattr(self, name)
+            _check(math.isfinite(value) and value >= 0.0, name, "must be finite and >= 0")
 
 
 @dataclasses.dataclass(eq=False, slots=True)
@@ -104,8 +131,10 @@ class Region:
         boundary: ``(num_points, 2)`` boundary points as (r [m], θ [rad] in [0, 2π)), CCW with θ
             ascending; on failure the fallback beams' shrunk points.
         boundary_xy: The same points in Cartesian coordinates.
-        success: Whether the region was computed (spec's flag).
-        status: One of :data:`STATUS_NAMES`.
+        success: Whether the region was computed at the configured inflation (spec's flag).
+        status: One of :data:`STATUS_NAMES` (the first attempt's, also when recovered).
+        recovered: The first attempt failed and the polygon comes from the recovery ladder.
+        inflation: The inflation the polygon was computed with, metres (NaN without a polygon).
     """
 
     vertices: np.ndarray
@@ -115,11 +144,18 @@ class Region:
     boundary_xy: np.ndarray
     success: bool
     status: str
+    recovered: bool = False
+    inflation: float = math.nan
+
+    @property
+    def has_polygon(self) -> bool:
+        """Whether ``vertices``/``normals``/``offsets`` hold a convex polygon (found or recovered)."""
+        return self.success or self.recovered
 
     @property
     def constraint_polygon(self) -> np.ndarray | None:
-        """Clockwise vertices for the MPC constraint, or ``None`` when the region failed."""
-        return self.vertices if self.success else None
+        """Clockwise vertices for the MPC constraint, or ``None`` when there is no polygon."""
+        return self.vertices if self.has_polygon else None
 
 
 def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig | None = None) -> Region:
@@ -184,8 +220,39 @@ def _region(
         ordered,
     )  # fmt: skip
     if status != 0:
-        return _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, STATUS_NAMES[status])
-    return Region(verts, normals, offsets, polar, xy, True, "ok")
+        failed = _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, STATUS_NAMES[status])
+        return _recover(r, cos, sin, ordered, cfg, failed) if cfg.on_failure == "recover" else failed
+    return Region(verts, normals, offsets, polar, xy, True, "ok", False, cfg.inflation)
+
+
+def _recover(r: np.ndarray, cos: np.ndarray, sin: np.ndarray, ordered: bool, cfg: RegionConfig,
+             failed: Region) -> Region:
+    """The recovery ladder (module docstring); ``failed`` (no polygon) when no level applies."""
+    d = min(max(float(r.min()), 0.0), cfg.max_range)
+    levels = sorted({min(cfg.recover_inflation, cfg.inflation), min(cfg.recover_floor, cfg.inflation)}, reverse=True)
+    for inflation in levels:
+        if d - inflation > cfg.recover_gap:
+            status, verts, normals, offsets, polar, xy = _galaxy_scan(
+                r, cos, sin, cfg.max_range, inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points,
+                ordered,
+            )  # fmt: skip
+            if status == 0:
+                return Region(verts, normals, offsets, polar, xy, False, failed.status, True, inflation)
+    return failed
+
+
+def scan_polygon(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig | None = None) -> Region:
+    """The scan at the region's resolution, as a :class:`Region` without a convex polygon.
+
+    Its boundary is every ``n/num_points``-th beam's shrunk point (the paper's ``scan'``, which
+    Designs 1 and 4 observe and Design 4 samples its points in); status ``scan``.
+
+    Raises:
+        ValueError: As :func:`compute_region`.
+    """
+    cfg = config if config is not None else _DEFAULT
+    r, th = _validate(ranges, angles, cfg.num_points)
+    return _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, "scan")
 
 
 def warm_up() -> None:
