@@ -84,6 +84,7 @@ class MpcConfig:
             stage-7 problem sequences faster cold, with the same jerks (``docs/results.md``).
         feasibility_tol: Largest accepted constraint violation of a returned solution (SI).
         brake_velocity_weight: Weight of Σ|v_k|² (vs 1 on Σ|a_k|²) in the braking fallback.
+        track_short: Keep the ``|p_1 - Q_s|²`` term (False: track ``Q_l`` only, Design 3).
     """
 
     horizon: int = 10
@@ -104,6 +105,7 @@ class MpcConfig:
     warm_start: bool | None = None
     feasibility_tol: float = 1e-5
     brake_velocity_weight: float = 10.0
+    track_short: bool = True
 
     def __post_init__(self) -> None:
         _check(self.horizon >= 2, "horizon", "must be >= 2")
@@ -209,7 +211,7 @@ class Mpc:
         self._phi, self._gamma = prediction_matrices(n_steps, cfg.t_c)
         self._n = 2 * n_steps + (1 if cfg.soft else 0)
         self._h_on, self._h_off = self._hessian(True), self._hessian(False)
-        self._weights = np.array([cfg.w_track, cfg.w_vel, cfg.w_acc, cfg.soft_weight])
+        self._weights = np.array([cfg.w_track, cfg.w_vel, cfg.w_acc, cfg.soft_weight, cfg.w_track * cfg.track_short])
         self._limits = np.array([cfg.j_max, cfg.v_max, cfg.a_max])
         self._a_fixed = self._fixed_rows()
         self._free = np.empty((n_steps, 3, 2))  # scratch of the DAQP assembly
@@ -279,6 +281,7 @@ class Mpc:
         q_l: np.ndarray,
         halfplanes: tuple[np.ndarray, np.ndarray] | None,
         goal_inside: bool = False,
+        keep_clear: bool = False,
     ) -> MpcResult:
         """:meth:`solve` without its input checks, for callers whose inputs are valid by construction.
 
@@ -292,16 +295,26 @@ class Mpc:
             halfplanes: ``(normals (K, 2), offsets (K,))`` of a convex polygon with K >= 3, or
                 ``None`` to plan without the region constraint.
             goal_inside: As for :meth:`solve`.
+            keep_clear: Never plan without a polygon (the region layer's ``on_failure='recover'``):
+                with ``halfplanes=None`` brake at once (fallback ``brake_no_region``), and skip the
+                ladder's ``no_polygon`` step when the QP fails.
 
         Returns:
             The :class:`MpcResult`, exactly as :meth:`solve` gives it for the same inputs.
         """
         start = time.perf_counter()
+        if keep_clear and halfplanes is None:
+            self.stats["solves"] += 1
+            self.stats["brake_no_region"] = self.stats.get("brake_no_region", 0) + 1
+            self._warm, self._plan_age = None, self._plan_age + 1
+            x = self._brake(state)
+            return self._result(state, x, _NO_SOLUTION, "brake_no_region", 0, time.perf_counter() - start)
         normals, offsets = (None, None) if halfplanes is None else halfplanes
-        return self._solve(state, q_s, q_l, normals, offsets, goal_inside, start)
+        return self._solve(state, q_s, q_l, normals, offsets, goal_inside, start, keep_clear)
 
     def _solve(
-        self, s: Arr, qs: Arr, ql: Arr, normals: Arr | None, offsets: Arr | None, goal_inside: bool, start: float
+        self, s: Arr, qs: Arr, ql: Arr, normals: Arr | None, offsets: Arr | None, goal_inside: bool, start: float,
+        keep_clear: bool = False,
     ) -> MpcResult:
         """:meth:`solve` after its checks; ``start`` is the ``perf_counter`` time the call began."""
         cfg = self.config
@@ -315,7 +328,7 @@ class Mpc:
             self._plan_age = 0
         else:
             self.stats["failures"] += 1
-            x, fallback = self._fallback(s, qs, ql, normals, stop)
+            x, fallback = self._fallback(s, qs, ql, None if keep_clear else normals, stop)
         self._warm = _shift(x, cfg.horizon) if (self.warm_start and fallback is None) else None
         return self._result(s, x, sol, fallback, rows, time.perf_counter() - start)
 
@@ -390,7 +403,7 @@ class Mpc:
     def _hessian(self, stop: bool) -> np.ndarray:
         cfg = self.config
         gp, gv, ga = self._gamma
-        h1 = cfg.w_track * (np.outer(gp[0], gp[0]) + np.outer(gp[-1], gp[-1])) + cfg.w_jerk * np.eye(
+        h1 = cfg.w_track * (cfg.track_short * np.outer(gp[0], gp[0]) + np.outer(gp[-1], gp[-1])) + cfg.w_jerk * np.eye(
             cfg.horizon
         )
         if stop:
@@ -493,3 +506,4 @@ def _shift(x: np.ndarray, n_steps: int) -> np.ndarray:
 
 
 _NO_ROWS, _NO_OFFSETS = np.zeros((0, 2)), np.zeros(0)
+_NO_SOLUTION = QpSolution(None, False, "not_solved", 0)

@@ -389,7 +389,7 @@ def assemble(
         stop: Whether the ``|v_N|²`` and ``Σ|a_k|²`` terms are on.
         phi: ``(N, 3, 3)`` free response (:func:`~mjnav.control.mpc.prediction_matrices`).
         gamma: ``(3, N, N)`` jerk response.
-        weights: ``(4,)`` (w_track, w_vel, w_acc, soft_weight).
+        weights: ``(5,)`` (w_track of p_N, w_vel, w_acc, soft_weight, w_track of p_1).
         limits: ``(3,)`` (j_max, v_max, a_max).
         n: Number of variables (2N, or 2N + 1 with the slack as the last one).
 
@@ -419,7 +419,7 @@ def _assemble_into(
     last = steps - 1
     for d in range(2):
         for i in range(steps):
-            g = weights[0] * (gp[0, i] * (free[0, 0, d] - qs[d]) + gp[last, i] * (free[last, 0, d] - ql[d]))
+            g = weights[4] * gp[0, i] * (free[0, 0, d] - qs[d]) + weights[0] * gp[last, i] * (free[last, 0, d] - ql[d])
             if stop:
                 g += weights[1] * gv[last, i] * free[last, 1, d]
                 for k in range(i, steps):

@@ -361,3 +361,32 @@ def test_daqp_fused_assembly_writes_the_generic_problem(soft, drop) -> None:
             np.testing.assert_array_equal(upper[: n + m0 + rows], np.concatenate([problem.ub, problem.hi, problem.b_poly]))
             np.testing.assert_array_equal(lower[: n + m0 + rows],
                                           np.concatenate([problem.lb, problem.lo, np.full(rows, -INF)]))
+
+
+def test_keep_clear_brakes_without_a_region():
+    """``keep_clear`` with no polygon brakes (counted) instead of planning unconstrained."""
+    mpc = Mpc()
+    state = np.array([[0.0, 0.0], [1.5, 0.0], [0.0, 0.0]])
+    res = mpc.solve_unchecked(state, np.array([0.3, 0.0]), np.array([3.0, 0.0]), None, False, True)
+    assert res.fallback == "brake_no_region" and mpc.stats["brake_no_region"] == 1
+    assert res.u0[0] < 0.0  # decelerates
+
+
+def test_keep_clear_skips_the_unconstrained_rung():
+    """With ``keep_clear`` an infeasible polygon QP never falls back to planning without it."""
+    mpc = Mpc()
+    tiny = orient_clockwise(0.01 * SQUARE)
+    state = np.array([[0.0, 0.0], [2.5, 0.0], [0.0, 0.0]])
+    res = mpc.solve_unchecked(state, np.array([0.3, 0.0]), np.array([3.0, 0.0]), halfplanes(tiny), False, True)
+    assert res.fallback == "brake"
+
+
+def test_track_short_false_ignores_the_short_term_point():
+    """Design 3's MPC (``track_short=False``) gives the same plan whatever Q_s is."""
+    mpc = Mpc(MpcConfig(track_short=False))
+    state = np.array([[0.0, 0.0], [0.5, 0.2], [0.0, 0.0]])
+    a = mpc.solve(state, np.array([0.0, 0.0]), np.array([2.0, 1.0]), SQUARE * 3)
+    b = mpc.solve(state, np.array([0.2, -0.2]), np.array([2.0, 1.0]), SQUARE * 3)
+    assert a.ok and b.ok and np.allclose(a.jerks, b.jerks, atol=1e-8)
+    c = Mpc().solve(state, np.array([0.2, -0.2]), np.array([2.0, 1.0]), SQUARE * 3)
+    assert not np.allclose(a.jerks, c.jerks, atol=1e-6)
