@@ -44,11 +44,14 @@ class TaskConfig:
         name: Stage name (``stage6``).
         version: Behaviour version; bumped when results would change.
         collision: ``contact`` (MuJoCo contacts) or ``scan`` (authors: shrunk scan <= 0).
+        design: State and action design of the paper's first ablation (``ours``, ``design1`` …
+            ``design4``; :mod:`mjnav.tasks.design`).
     """
 
     name: str = "custom"
     version: int = 1
     collision: Literal["contact", "scan"] = "contact"
+    design: Literal["ours", "design1", "design2", "design3", "design4"] = "ours"
     arena: ArenaConfig = ArenaConfig()
     obstacles: ObstacleConfig = ObstacleConfig()
     crowd: CrowdConfig = CrowdConfig()
@@ -67,7 +70,8 @@ class TaskConfig:
         t_c, robot = self.timing.control_period, self.robot
         return {
             "mpc": {"t_c": ("timing.control_period", t_c), "v_max": ("robot.v_max", robot.v_max),
-                    "a_max": ("robot.a_max", robot.a_max), "j_max": ("robot.j_max", robot.j_max)},
+                    "a_max": ("robot.a_max", robot.a_max), "j_max": ("robot.j_max", robot.j_max),
+                    "track_short": ("design (design3 tracks Q_l only)", self.design != "design3")},
             "action": {"t_c": ("timing.control_period", t_c), "jerk_max": ("robot.j_max", robot.j_max),
                        "long_time": ("mpc.horizon x timing.control_period", self.mpc.horizon * t_c)},
             "region": {"max_range": ("lidar.max_range", self.lidar.max_range)},

@@ -74,7 +74,7 @@ class NavGymEnv(gym.Env):
         self.task = self._env.task
         size = self.task.core.observation_size
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
-        self.action_space = gym.spaces.Box(-np.inf, np.inf, (4,), np.float32)
+        self.action_space = gym.spaces.Box(-np.inf, np.inf, (self.task.core.design.action_size,), np.float32)
         self.render_mode = render_mode
 
     @property

@@ -17,12 +17,14 @@ import typing
 
 import numpy as np
 
-from mjnav.control.action import map_action_values
+from mjnav.baselines.tracking import Limits, track_velocity
+from mjnav.control.action import boundary_distance, goal_inside, map_action_values, radii
 from mjnav.control.mpc import Mpc
 from mjnav.geometry.raycast import beam_angles
-from mjnav.geometry.region import Region, RegionFinder
+from mjnav.geometry.region import Region, RegionFinder, scan_polygon
 from mjnav.tasks import observation as obs_lib
 from mjnav.tasks import reward as reward_lib
+from mjnav.tasks.design import get_design
 
 __all__ = ["NavCore", "Outcome", "Planner", "PlannerInput", "StepRecord", "sigmoid"]
 
@@ -133,6 +135,13 @@ class StepRecord:
         return self._origin + self._relative[2]
 
 
+class _LongPoint:
+    """Design 3's action points in the shape :meth:`NavCore._remember` reads (Q_s unused: origin)."""
+
+    def __init__(self, q_l: np.ndarray, q_l_ref: np.ndarray) -> None:
+        self.q_s, self.q_l, self.q_l_ref = _ORIGIN, q_l, q_l_ref
+
+
 class NavCore:
     """Observation, action layer, reward and outcome of one environment."""
 
@@ -140,12 +149,16 @@ class NavCore:
         """Build the action layer for a :class:`mjnav.config.TaskConfig`."""
         self.config = config
         self._inflation = config.region.inflation
+        self.design = get_design(config.design)
+        self._keep_clear = config.region.on_failure == "recover" and self.design.polygon_constraint
         self._angles = beam_angles(config.lidar.beams)
         self._find_region = RegionFinder(self._angles, config.region)
         self._mpc = Mpc(config.mpc)
-        self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points)
+        self._columns = np.array(self.design.state_columns)
+        self._limits = Limits.from_task(config)
+        self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points, self.design.state_size)
         self._reward_terms = reward_lib.weighted_terms(config.reward)
-        self.counters = {"region_failures": 0, "fallbacks": 0, "steps": 0}
+        self.counters = {"region_failures": 0, "region_recoveries": 0, "fallbacks": 0, "steps": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
 
     # ------------------------------------------------------------------ episode
@@ -164,9 +177,13 @@ class NavCore:
         return self._stack.reset(polygon, state)
 
     def _region(self, scan: np.ndarray) -> Region:
+        """The scan's convex region, or (designs that see the scan) its scan' polygon."""
+        if self.design.observe == "scan":
+            return scan_polygon(scan, self._angles, self.config.region)
         region = self._find_region(scan)
         if not region.success:
             self.counters["region_failures"] += 1
+            self.counters["region_recoveries"] += int(region.recovered)
         return region
 
     def _frame(self, position: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -175,35 +192,82 @@ class NavCore:
             position, velocity, self.goal, self.region.success, self._plan, self._inflation,
             self.config.observation.angle,
         )
-        return polygon, state
+        return polygon, (state if self.design.name == "ours" else state[self._columns])
 
     # ------------------------------------------------------------------ action
     def plan(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
-        """Map a raw 4-value action to the jerk to apply over the next period (m/s³).
+        """Map a raw action (``design.action_size`` values) to the jerk over the next period (m/s³).
 
         Raises:
             ValueError: If the action has the wrong shape or a non-finite value.
         """
         action = np.asarray(action, dtype=np.float64).reshape(-1)
-        if action.shape != (4,) or not all(map(math.isfinite, action.tolist())):
-            raise ValueError(f"action must be 4 finite values, got {action!r}")
+        size = self.design.action_size
+        if action.shape != (size,) or not all(map(math.isfinite, action.tolist())):
+            raise ValueError(f"action must be {size} finite values ({self.design.name}), got {action!r}")
         (px, py), (gx, gy) = position.tolist(), self._goal
         motion = [*velocity.tolist(), *accel.tolist(), gx - px, gy - py]
         if not all(map(math.isfinite, motion)):  # checked once here, so the action layer need not
             raise ValueError(f"robot state is not finite: p={position}, v={velocity}, a={accel}")
+        if self.design.action == "velocity":
+            return self._plan_velocity(action, position, velocity, accel)
+        if self.design.action == "long_point":
+            return self._plan_long_point(action, position, velocity, accel)
         t0 = time.perf_counter()
         squashed = [0.5 * (1.0 + t) for t in np.tanh(0.5 * action).tolist()]  # sigmoid(action), on floats
         points = map_action_values(squashed + motion, self.region, self.config.action)
         region = self.region
-        planes = (region.normals, region.offsets) if region.success else None
+        planes = (region.normals, region.offsets) if region.has_polygon else None
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
-        result = self._mpc.solve_unchecked(state, points.q_s, points.q_l_ref, planes, points.goal_inside)
+        result = self._mpc.solve_unchecked(state, points.q_s, points.q_l_ref, planes, points.goal_inside,
+                                           self._keep_clear)
         self.timers["action"] += t1 - t0
         self.timers["mpc"] += time.perf_counter() - t1
         plan_ok = result.fallback is None
         self.counters["fallbacks"] += int(not plan_ok)
         self._remember(points, result, position, plan_ok)
+        return np.asarray(result.u0, dtype=np.float64)
+
+    def _plan_velocity(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray,
+                       accel: np.ndarray) -> np.ndarray:
+        """Designs 1-2: v = v_max·tanh(a) per axis, followed by the jerk-limited velocity tracker."""
+        command = self._limits.v_max * np.tanh(action)
+        jerk = track_velocity(velocity, accel, command, self._limits)
+        here = position.copy()
+        self._pending = {"plan": None, "q_s": here, "q_l": here, "q1": here, "qn": here, "plan_ok": False}
+        self.record = StepRecord(here, here, here + command * self.config.timing.control_period, command * 0.0,
+                                 np.zeros((1, 2)), self.region.boundary_xy, False, None, 0.0,
+                                 bool(self.region.success))
+        return jerk
+
+    def _plan_long_point(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray,
+                         accel: np.ndarray) -> np.ndarray:
+        """Design 3: Q_l sampled like Q_s of spec §4 but in the long-term action space; the MPC
+        tracks p_N only (``mpc.track_short`` is False for this design)."""
+        t0 = time.perf_counter()
+        alpha, beta = sigmoid(action).tolist()
+        cfg = self.config.action
+        heading = math.atan2(velocity[1], velocity[0]) if cfg.heading == "velocity" and velocity.any() else 0.0
+        theta = 2.0 * math.pi * alpha + heading
+        direction = np.array((math.cos(theta), math.sin(theta)))
+        _, r_l = radii(velocity, accel, cfg)
+        q_l = beta * min(boundary_distance(self.region, _ORIGIN, direction), r_l) * direction
+        goal = self.goal - position
+        inside = goal_inside(self.region, goal)
+        region = self.region
+        planes = (region.normals, region.offsets) if region.has_polygon else None
+        state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
+        t1 = time.perf_counter()
+        result = self._mpc.solve_unchecked(state, _ORIGIN, goal if inside else q_l, planes, inside,
+                                           self._keep_clear)
+        self.timers["action"] += t1 - t0
+        self.timers["mpc"] += time.perf_counter() - t1
+        plan_ok = result.fallback is None
+        self.counters["fallbacks"] += int(not plan_ok)
+        points = _LongPoint(q_l, goal if inside else q_l)
+        self._remember(points, result, position, plan_ok)
+        self._pending["q_s"] = None  # Design 3 has no short-term point: its reward terms drop out
         return np.asarray(result.u0, dtype=np.float64)
 
     def _remember(self, points, result, position: np.ndarray, plan_ok: bool) -> None:
@@ -220,7 +284,7 @@ class NavCore:
         region = self.region
         self.record = StepRecord(
             position.copy(), q_s, q_l, points.q_l_ref, result.positions,
-            region.vertices if region.success else region.boundary_xy,
+            region.vertices if region.has_polygon else region.boundary_xy,
             plan_ok, result.fallback, result.solve_time_s, bool(region.success),
         )  # fmt: skip
 
@@ -297,4 +361,5 @@ class NavCore:
     @property
     def observation_size(self) -> int:
         """Length of the stacked observation."""
-        return obs_lib.observation_size(self.config.observation.frames, self.config.region.num_points)
+        return obs_lib.observation_size(self.config.observation.frames, self.config.region.num_points,
+                                        self.design.state_size)

@@ -60,9 +60,12 @@ class CrowdNavTask(composer.Task):
         return {"observation": self._observable}
 
     def action_spec(self, physics) -> specs.Array:
-        """Four raw (pre-sigmoid) values: α_s, β_s, α_l, β_l."""
+        """The design's raw action: four pre-sigmoid values α_s, β_s, α_l, β_l for ``ours`` and
+        Design 4, (α_l, β_l) for Design 3, (v_x, v_y) before tanh for Designs 1-2."""
         del physics
-        return specs.Array(shape=(4,), dtype=np.float32, name="alpha_s,beta_s,alpha_l,beta_l")
+        names = {"points": "alpha_s,beta_s,alpha_l,beta_l", "long_point": "alpha_l,beta_l", "velocity": "vx,vy"}
+        design = self.core.design
+        return specs.Array(shape=(design.action_size,), dtype=np.float32, name=names[design.action])
 
     def get_reward_spec(self) -> specs.Array:
         """A float64 scalar."""

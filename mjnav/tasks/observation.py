@@ -61,9 +61,9 @@ class Plan:
         return np.array([self.q_s, self.q_l, self.q1, self.qn, self.q1_world, self.qn_world], dtype=np.float64)
 
 
-def observation_size(frames: int = 3, points: int = 60) -> int:
-    """Length of the stacked observation (399 for the defaults)."""
-    return frames * (2 * points + STATE_SIZE)
+def observation_size(frames: int = 3, points: int = 60, state_size: int = STATE_SIZE) -> int:
+    """Length of the stacked observation (399 for the defaults; designs keep fewer state values)."""
+    return frames * (2 * points + state_size)
 
 
 def polygon_block(boundary: np.ndarray, inflation: float) -> np.ndarray:
@@ -159,12 +159,13 @@ class FrameStack:
     push shifts two slices and writes the new frame: no per-step concatenation or cast.
     """
 
-    def __init__(self, frames: int = 3, points: int = 60) -> None:
-        """Create an empty stack for ``frames`` frames of ``points`` boundary points."""
-        self._frames, self._poly = frames, 2 * points
-        self._obs = np.zeros(frames * (2 * points + STATE_SIZE), dtype=np.float32)
+    def __init__(self, frames: int = 3, points: int = 60, state_size: int = STATE_SIZE) -> None:
+        """Create an empty stack for ``frames`` frames of ``points`` boundary points and
+        ``state_size`` state values."""
+        self._frames, self._poly, self._state = frames, 2 * points, state_size
+        self._obs = np.zeros(frames * (2 * points + state_size), dtype=np.float32)
         self._polygons = self._obs[: frames * self._poly].reshape(frames, self._poly)  # views
-        self._states = self._obs[frames * self._poly :].reshape(frames, STATE_SIZE)
+        self._states = self._obs[frames * self._poly :].reshape(frames, state_size)
 
     def reset(self, polygon: np.ndarray, state: np.ndarray) -> np.ndarray:
         """Fill every slot with the first frame and return the observation."""
@@ -177,8 +178,8 @@ class FrameStack:
         obs, old, split = self._obs, self._poly * (self._frames - 1), self._poly * self._frames
         obs[:old] = obs[self._poly : split]  # overlapping slices: numpy copies as if buffered
         obs[old:split] = polygon
-        obs[split : -STATE_SIZE] = obs[split + STATE_SIZE :]
-        obs[-STATE_SIZE:] = state
+        obs[split : -self._state] = obs[split + self._state :]
+        obs[-self._state :] = state
         return obs.copy()
 
     def observation(self) -> np.ndarray:

@@ -35,7 +35,8 @@ class RewardInputs:
         prev_distance: Robot-goal distance before the step, metres (None on the first step).
         plan_ok: The MPC solved this step's QP (no fallback).
         prev_plan_ok: The previous step's plan succeeded (False on the first step).
-        q_s, q_l: This step's action points (network's own Q_l), world frame, metres.
+        q_s, q_l: This step's action points (network's own Q_l), world frame, metres; ``q_s`` is
+            None for a design without a short-term point (Design 3), whose Q_s terms drop out.
         q1, qn: This step's planned p₁ and p_N, world frame, metres.
         prev_q_s, prev_q_l: Previous step's action points, world frame (None on the first step).
         velocity: Robot velocity after the step, m/s.
@@ -50,7 +51,7 @@ class RewardInputs:
     prev_distance: float | None
     plan_ok: bool
     prev_plan_ok: bool
-    q_s: np.ndarray
+    q_s: np.ndarray | None
     q_l: np.ndarray
     q1: np.ndarray
     qn: np.ndarray
@@ -84,16 +85,17 @@ def feasibility(inp: RewardInputs, cfg: RewardConfig) -> float:
     """‖Q_s − p₁‖ + ‖Q_l − p_N‖ when the plan succeeded, capped so |weight·term| ≤ clip."""
     if not inp.plan_ok:
         return 0.0
-    gap = _dist(inp.q_s, inp.q1) + _dist(inp.q_l, inp.qn)
+    gap = (0.0 if inp.q_s is None else _dist(inp.q_s, inp.q1)) + _dist(inp.q_l, inp.qn)
     cap = cfg.feasibility_clip / abs(cfg.feasibility) if cfg.feasibility else math.inf
     return min(gap, cap)
 
 
 def change(inp: RewardInputs) -> float:
-    """‖ΔQ_s‖ + ‖ΔQ_l‖ (world frame) when the previous plan succeeded, else 0."""
-    if not inp.prev_plan_ok or inp.prev_q_s is None or inp.prev_q_l is None:
+    """‖ΔQ_s‖ + ‖ΔQ_l‖ (world frame) when the previous plan succeeded, else 0 (no Q_s: ‖ΔQ_l‖)."""
+    if not inp.prev_plan_ok or inp.prev_q_l is None:
         return 0.0
-    return _dist(inp.q_s, inp.prev_q_s) + _dist(inp.q_l, inp.prev_q_l)
+    short = 0.0 if inp.q_s is None or inp.prev_q_s is None else _dist(inp.q_s, inp.prev_q_s)
+    return short + _dist(inp.q_l, inp.prev_q_l)
 
 
 def compute_terms(inp: RewardInputs, cfg: RewardConfig) -> dict[str, float]:
