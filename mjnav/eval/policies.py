@@ -38,7 +38,9 @@ __all__ = [
     "build_actor",
     "load_policy",
     "policy_name",
+    "policy_config",
     "resolve_checkpoint",
+    "training_overrides",
 ]
 
 if TYPE_CHECKING:
@@ -90,19 +92,21 @@ class Agent:
         """Use :func:`load_policy` rather than this constructor."""
         self.name, self.kind, self.source = name, kind, source
         self._actor = actor
+        self.action_size = 4  # the task's, from begin()
         self.planner = TimedPlanner(planner) if planner is not None else None
 
     def begin(self, task: CrowdNavTask, episode_seed: int) -> None:
         """Install on ``task`` (a CrowdNavTask) before its reset for ``episode_seed``."""
         task.planner = self.planner
-        if isinstance(self._actor, RandomActionPolicy):
+        self.action_size = task.core.design.action_size
+        if isinstance(self._actor, (RandomActionPolicy, _SampledActor)):
             self._actor.reset(np.random.default_rng([episode_seed, 1]))
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        """The (4,) float32 raw action (zeros for planners: the task ignores it)."""
+        """The float32 raw action (zeros for planners: the task ignores it)."""
         if self._actor is None:
-            return np.zeros(4, dtype=np.float32)
-        return np.asarray(self._actor(observation), dtype=np.float32).reshape(4)
+            return np.zeros(self.action_size, dtype=np.float32)
+        return np.asarray(self._actor(observation), dtype=np.float32).reshape(-1)
 
     def plan_times_ms(self) -> list[float]:
         """Planner wall times of the current episode, ms (empty for learned policies)."""
@@ -110,6 +114,31 @@ class Agent:
 
 
 # ---------------------------------------------------------------------------- torch actors
+
+
+class _SampledActor:
+    """The policy's Gaussian: mean + exp(log_std)·N(0, 1) on the raw action (as in training)."""
+
+    def __init__(self, mean: Callable[[np.ndarray], np.ndarray], log_std: np.ndarray) -> None:
+        self._mean, self._std = mean, np.exp(np.asarray(log_std, dtype=np.float64))
+        self._rng = np.random.default_rng(0)
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Start an episode with its own generator (paired across policies by episode seed)."""
+        self._rng = rng
+
+    def __call__(self, observation: np.ndarray) -> np.ndarray:
+        mean = self._mean(observation)
+        return (mean + self._std * self._rng.standard_normal(mean.shape)).astype(np.float32)
+
+
+def _log_std(state: dict) -> np.ndarray:
+    """The state-independent log-std of an rsl-rl actor state dict."""
+    for key, transform in (("distribution.log_std_param", None), ("distribution.std_param", np.log)):
+        if key in state:
+            value = state[key].detach().cpu().numpy().astype(np.float64)
+            return transform(value) if transform else value
+    raise ValueError("checkpoint actor has no distribution.log_std_param or std_param: cannot sample")
 
 
 def _torch_actor(module: torch.nn.Module) -> Callable[[np.ndarray], np.ndarray]:
@@ -126,8 +155,8 @@ def _torch_actor(module: torch.nn.Module) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def _activations(checkpoint: Path) -> Sequence[str]:
-    config = checkpoint.parent / "config.yaml"
-    if config.exists():
+    config = _config_beside(checkpoint)
+    if config is not None:
         import yaml
 
         saved = yaml.safe_load(config.read_text()) or {}
@@ -214,14 +243,19 @@ def policy_name(spec: str | Path, runs_dir: str | Path = "runs") -> str:
     return str(spec) if str(spec) in BASELINES else _display_name(_find(spec, runs_dir))
 
 
-def _load_learned(path: Path) -> Agent:
+def _load_learned(path: Path, mode: str = "mean") -> Agent:
     import torch
 
     name = _display_name(path)
+    log_std = None
     try:
-        if re.fullmatch(r"model_\d+\.pt", path.name):
+        if _is_checkpoint(path):
             state = torch.load(str(path), map_location="cpu", weights_only=False)
             module = build_actor(state["actor_state_dict"], _activations(path))
+            log_std = _log_std(state["actor_state_dict"]) if mode == "sample" else None
+        elif mode == "sample":
+            raise ValueError(f"policy {str(path)!r}: action=sample needs an rsl-rl checkpoint (model_<it>.pt or "
+                             "*_checkpoint.pt); an exported policy.pt holds only the mean")
         else:
             with warnings.catch_warnings():  # TorchScript is deprecated, still the portable format
                 warnings.simplefilter("ignore", DeprecationWarning)
@@ -232,15 +266,23 @@ def _load_learned(path: Path) -> Agent:
             f"policy {str(path)!r}: not a loadable TorchScript policy.pt or rsl-rl model_<it>.pt "
             f"({type(err).__name__}: {reason})"
         ) from err
-    return Agent(name, "learned", str(path), actor=_torch_actor(module))
+    actor = _torch_actor(module)
+    return Agent(name, "learned", str(path), actor=actor if log_std is None else _SampledActor(actor, log_std))
 
 
-def load_policy(spec: str | Path, runs_dir: str | Path = "runs") -> Agent:
+def _is_checkpoint(path: Path) -> bool:
+    """An rsl-rl checkpoint by name: ``model_<it>.pt`` or a shipped ``NAME_checkpoint.pt``."""
+    return re.fullmatch(r"model_\d+\.pt", path.name) is not None or path.name.endswith("_checkpoint.pt")
+
+
+def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "mean") -> Agent:
     """Load a policy by ``PATH_OR_NAME`` (see the module docstring).
 
     Args:
         spec: Baseline name, file or run directory (or a run name under ``runs_dir``).
         runs_dir: Where run names are looked up.
+        mode: ``mean`` (deterministic, spec §8) or ``sample`` (the training Gaussian; needs a
+            checkpoint; noise seeded by the episode seed).
 
     Returns:
         The :class:`Agent`.
@@ -254,4 +296,50 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs") -> Agent:
         return Agent("random", "random", "random", actor=RandomActionPolicy())
     if text in PLANNERS:
         return Agent(text, "planner", text, planner=make_planner(text))
-    return _load_learned(_find(text, runs_dir))
+    if mode not in ("mean", "sample"):
+        raise ValueError(f"action: expected 'mean' or 'sample', got {mode!r}")
+    return _load_learned(_find(text, runs_dir), mode)
+
+
+def policy_config(spec: str | Path, runs_dir: str | Path = "runs") -> Path | None:
+    """The training ``config.yaml`` of a learned policy, or None (baselines, or none found).
+
+    Looked up next to the loaded file: the run folder's ``config.yaml``; for a shipped
+    ``NAME_policy.pt`` or ``NAME_checkpoint.pt`` its ``NAME_config.yaml``; for any other
+    ``NAME.pt`` its ``NAME_config.yaml`` or ``NAME.yaml``.
+    """
+    text = str(spec)
+    if text in BASELINES:
+        return None
+    return _config_beside(_find(text, runs_dir))
+
+
+def _config_beside(path: Path) -> Path | None:
+    stem = path.stem.removesuffix("_policy").removesuffix("_checkpoint")
+    for candidate in (path.parent / "config.yaml", path.with_name(f"{stem}_config.yaml"), path.with_suffix(".yaml")):
+        if candidate.is_file():
+            return candidate
+    return None
+
+
+def training_overrides(spec: str | Path, runs_dir: str | Path = "runs") -> tuple[str, ...]:
+    """The dotted task overrides a learned policy was trained with (``run.task_overrides`` of its
+    config), so evaluation rebuilds the task it learned (design, reward, collision rule, ...).
+
+    Returns:
+        The overrides, or ``()`` for baselines and policies without a config.
+
+    Raises:
+        ValueError: The config exists but is not a training config.
+    """
+    config = policy_config(spec, runs_dir)
+    if config is None:
+        return ()
+    import yaml
+
+    saved = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
+    run = saved.get("run") if isinstance(saved, dict) else None
+    if not isinstance(run, dict) or not isinstance(run.get("task_overrides", []), list):
+        raise ValueError(f"{config}: not a training config.yaml (no run.task_overrides list)")
+    return tuple(str(o) for o in run.get("task_overrides") or ())
+

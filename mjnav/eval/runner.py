@@ -78,8 +78,11 @@ class EvalSpec:
         policy: ``PATH_OR_NAME`` (see :func:`mjnav.eval.policies.load_policy`).
         episodes: Number of held-out scenarios.
         seed_offset: Offset into the held-out seed range.
-        overrides: Dotted task overrides (``["crowd.count=25"]``).
+        overrides: Dotted task overrides given for this evaluation (``["crowd.count=25"]``).
         workers: Processes (0 or 1 = in this process).
+        policy_overrides: The task overrides the policy was trained with
+            (:func:`mjnav.eval.policies.training_overrides`); ``overrides`` win over them.
+        action: ``mean`` (deterministic) or ``sample`` (the policy's Gaussian, seeded per episode).
     """
 
     task: str
@@ -88,6 +91,13 @@ class EvalSpec:
     seed_offset: int = 0
     overrides: tuple[str, ...] = ()
     workers: int = 1
+    policy_overrides: tuple[str, ...] = ()
+    action: str = "mean"
+
+    @property
+    def task_overrides(self) -> list[str]:
+        """The overrides the environment is built with: the policy's, then this evaluation's."""
+        return [*self.policy_overrides, *self.overrides]
 
 
 @dataclasses.dataclass
@@ -198,8 +208,11 @@ def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGy
     from mjnav.envs.gym_env import NavGymEnv
     from mjnav.eval.policies import load_policy
 
-    env = NavGymEnv(args.get("task", "stage6"), overrides=list(overrides) or None, seed=0)
-    agent = load_policy(args.get("policy", "mpc_goal"))
+    from mjnav.eval.policies import training_overrides
+
+    policy = args.get("policy", "mpc_goal")
+    env = NavGymEnv(args.get("task", "stage6"), overrides=[*training_overrides(policy), *overrides] or None, seed=0)
+    agent = load_policy(policy)
     seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
     return env, agent, seed
 
@@ -261,8 +274,8 @@ def _setup_worker(spec: EvalSpec) -> None:
         torch.set_num_threads(1)
     except ImportError:
         pass
-    env = _WORKER["env"] = NavGymEnv(spec.task, overrides=list(spec.overrides) or None, seed=0)
-    agent = _WORKER["agent"] = load_policy(spec.policy)
+    env = _WORKER["env"] = NavGymEnv(spec.task, overrides=spec.task_overrides or None, seed=0)
+    agent = _WORKER["agent"] = load_policy(spec.policy, mode=spec.action)
     _WORKER["spec"] = spec
     _warm_up(env, agent)
 
@@ -295,7 +308,7 @@ def _results(spec: EvalSpec) -> Iterator[dict[str, Any]]:
     from mjnav.eval.policies import load_policy
 
     try:  # a bad policy fails here, in seconds, before any worker starts
-        load_policy(spec.policy)
+        load_policy(spec.policy, mode=spec.action)
     except ValueError as err:
         raise EvalError(str(err)) from err
     ctx = mp.get_context("spawn")
@@ -333,14 +346,16 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
     from mjnav.envs.factory import resolve_config
     from mjnav.eval.policies import policy_name as describe
 
-    config = resolve_config(spec.task, list(spec.overrides) or None)
+    config = resolve_config(spec.task, spec.task_overrides or None)
     policy_name = describe(spec.policy)
     stream = _results(spec)
     rows = sorted(_progress(stream, spec.episodes, f"{config.name}/{policy_name}") if progress else stream,
                   key=lambda r: r["index"])
     commit = git_commit()
     common = {"task": config.name, "task_version": config.version, "policy": policy_name,
-              "policy_source": spec.policy, "commit": commit, "overrides": list(spec.overrides)}
+              "policy_source": spec.policy, "commit": commit, "overrides": spec.task_overrides,
+              "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
+              "design": config.design, "action_mode": spec.action}
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
@@ -365,7 +380,7 @@ def evaluate_tasks(
 # ---------------------------------------------------------------------------- command line
 
 _USAGE = ("usage: evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6] "
-          "[workers=N] [out=DIR] [seed_offset=0] [task.KEY=VALUE ...]")
+          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|sample] [task.KEY=VALUE ...]")
 
 
 def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
@@ -382,7 +397,7 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
             raise ValueError(f"expected key=value, got {item!r}\n{_USAGE}")
         if key.startswith("task."):
             overrides.append(f"{key[5:]}={value}")
-        elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset"):
+        elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset", "action"):
             args[key] = value
         else:
             raise ValueError(f"unknown argument {key!r}\n{_USAGE}")
@@ -392,7 +407,16 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     workers = _integer(args, "workers", os.cpu_count() or 1, minimum=0)
     episodes = _integer(args, "episodes", 1000, minimum=1)
     offset = _integer(args, "seed_offset", 0, minimum=0)
-    specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers)
+    from mjnav.eval.policies import training_overrides
+
+    try:
+        trained = training_overrides(args["policy"])
+    except FileNotFoundError as err:
+        raise ValueError(str(err)) from None
+    action = args.get("action", "mean")
+    if action not in ("mean", "sample"):
+        raise ValueError(f"action: expected mean or sample, got {action!r}")
+    specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action)
              for t in tasks if t.strip()]
     out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
     return specs, out

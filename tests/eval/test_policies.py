@@ -50,3 +50,35 @@ def test_baseline_names_and_errors(tmp_path):
     assert random.planner is None and random.act(np.zeros(399)).shape == (4,)
     with pytest.raises(FileNotFoundError):
         load_policy("no_such_policy", runs_dir=tmp_path)
+
+
+def test_training_overrides_come_from_the_policy_config(tmp_path):
+    """A shipped NAME_policy.pt is evaluated with NAME_config.yaml's task overrides; baselines have none."""
+    import yaml
+
+    from mjnav.eval.policies import policy_config, training_overrides
+
+    (tmp_path / "stage4_policy.pt").write_bytes(b"x")
+    (tmp_path / "stage4_config.yaml").write_text(yaml.safe_dump({"run": {"task_overrides": ["design=design2",
+                                                                                          "collision=scan"]}}))
+    assert policy_config(tmp_path / "stage4_policy.pt") == tmp_path / "stage4_config.yaml"
+    assert training_overrides(tmp_path / "stage4_policy.pt") == ("design=design2", "collision=scan")
+    assert training_overrides("mpc_goal") == ()
+    (tmp_path / "stage4_config.yaml").write_text("just: text\n")
+    with pytest.raises(ValueError, match="not a training config"):
+        training_overrides(tmp_path / "stage4_policy.pt")
+
+
+def test_sampled_actions_follow_the_checkpoint_gaussian(run_dir):
+    """action=sample draws mean + std·N(0,1) per episode seed; exported policy.pt cannot sample."""
+    from mjnav.eval.policies import _SampledActor
+
+    agent = load_policy(run_dir / "model_3.pt", mode="sample")
+    assert isinstance(agent._actor, _SampledActor)
+    obs = np.zeros(399, np.float32)
+    mean = load_policy(run_dir / "model_3.pt").act(obs)
+    agent._actor.reset(np.random.default_rng(0))
+    draws = np.array([agent.act(obs) for _ in range(2000)])
+    assert np.allclose(draws.mean(0), mean, atol=0.05) and np.allclose(draws.std(0), np.exp(-0.5), atol=0.05)
+    with pytest.raises(ValueError, match="needs an rsl-rl checkpoint"):
+        load_policy(run_dir / "policy.pt", mode="sample")
