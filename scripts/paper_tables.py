@@ -1,0 +1,44 @@
+"""Regenerate a table of the paper from held-out evaluations (see :mod:`mjnav.eval.tables`).
+
+    python scripts/paper_tables.py table=2 [episodes=1000] [out=evals/paper] [workers=2]
+                                   [seed_offset=0] [run=true] [action=mean|sample]
+
+Reads ``<out>/table<K>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
+(``run=false``: report them as missing instead) and prints the table in markdown.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from mjnav.schema import ConfigError, split_args
+
+
+def main(argv: list[str]) -> int:
+    """Parse ``key=value`` arguments, build the table, print it; returns the exit code."""
+    from mjnav.eval.tables import STAGES, format_table, table_rows
+
+    defaults = {"table": 2, "episodes": 1000, "out": "evals/paper", "workers": os.cpu_count() or 1,
+                "seed_offset": 0, "run": True, "action": "mean"}
+    try:
+        opts, extra = split_args(argv, defaults)
+        if extra:
+            raise ConfigError(f"unexpected task overrides {extra}: tables use each policy's training config")
+        table = int(opts["table"])
+        if opts["action"] not in ("mean", "sample"):
+            raise ConfigError(f"action: expected mean or sample, got {opts['action']!r}")
+        if table not in STAGES:
+            raise ConfigError(f"table: {table} is not available (known: {sorted(STAGES)})")
+        rows = table_rows(table, Path(str(opts["out"])), int(opts["episodes"]), int(opts["seed_offset"]),
+                          int(opts["workers"]), bool(opts["run"]), str(opts["action"]))
+    except (ConfigError, ValueError, FileNotFoundError) as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(format_table(rows), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
