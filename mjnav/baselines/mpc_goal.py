@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, brake
+from mjnav.baselines.tracking import Limits, brake, escape
 from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, radii
-from mjnav.control.mpc import Mpc
+from mjnav.control.guarded import GuardedMpc
 
 __all__ = ["MpcGoalPlanner", "reference_points"]
 
@@ -67,19 +67,20 @@ class MpcGoalPlanner:
         self.safety = safety
         self.stats = {"fallbacks": 0, "failures": 0}
         self.debug: dict[str, np.ndarray] = {}
-        self._mpc: Mpc | None = None
+        self._mpc: GuardedMpc | None = None
+        self._config: tuple | None = None
         self._action = ActionConfig()
-        self._keep_clear = True
+        self._escape_speed = 0.2
         self.limits = Limits()
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
         """Start an episode (``config``: the task's TaskConfig; ``rng`` unused: deterministic)."""
         del rng
-        if self._mpc is None or self._mpc.config != config.mpc:
-            self._mpc = Mpc(config.mpc)
+        if self._mpc is None or self._config != (config.mpc, config.region):
+            self._mpc, self._config = GuardedMpc(config.mpc, config.region), (config.mpc, config.region)
         self._mpc.reset()
         self._action = config.action
-        self._keep_clear = config.region.on_failure == "recover"
+        self._escape_speed = config.region.escape_speed
         self.limits = Limits.from_task(config)
         self.debug = {}
 
@@ -87,14 +88,14 @@ class MpcGoalPlanner:
         """Jerk for the next control period, m/s³ (brakes and counts on a bad input)."""
         v = np.asarray(inp.velocity, dtype=np.float64)
         a = np.asarray(inp.acceleration, dtype=np.float64)
+        if self._mpc.must_escape(inp.region):  # no region even after recovery: back off
+            self.stats["fallbacks"] += 1
+            return escape(np.asarray(inp.scan), inp.angles, v, a, self.limits, self._escape_speed)
         try:
             r_s, _ = radii(v, a, self._action)
             goal = np.asarray(inp.goal) - inp.position
             q_s, q_l, inside = reference_points(inp.region, goal, r_s, self.safety)
-            region = inp.region
-            planes = (region.normals, region.offsets) if region.has_polygon else None
-            result = self._mpc.solve_unchecked(np.stack([np.zeros(2), v, a]), q_s, q_l, planes, inside,
-                                               self._keep_clear)
+            result = self._mpc.solve(np.stack([np.zeros(2), v, a]), q_s, q_l, inp.region, inside)
         except (ValueError, FloatingPointError):
             self.stats["failures"] += 1
             return brake(np.nan_to_num(v), np.nan_to_num(a), self.limits)

@@ -19,7 +19,7 @@ import numpy as np
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
 
-__all__ = ["Limits", "brake", "nearest_per_sector", "scan_points", "track_velocity"]
+__all__ = ["Limits", "brake", "escape", "nearest_per_sector", "scan_points", "track_velocity"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,3 +144,30 @@ def track_velocity(
 def brake(velocity: np.ndarray, accel: np.ndarray, limits: Limits) -> np.ndarray:
     """Jerk that brings the robot to rest as fast as the limits allow, m/s³."""
     return track_velocity(velocity, accel, np.zeros(2), limits, gain=limits.a_max)
+
+
+def escape(scan: np.ndarray, angles: np.ndarray, velocity: np.ndarray, accel: np.ndarray, limits: Limits,
+           speed: float, band: float = 0.1) -> np.ndarray:
+    """Jerk that backs the robot away from its nearest returns at ``speed`` m/s.
+
+    The direction is minus the mean unit vector of the beams within ``band`` metres of the
+    shortest one (so a corner pushes out of the corner); where they cancel, the robot brakes.
+
+    Args:
+        scan: (n,) ranges, metres.
+        angles: (n,) beam angles, radians (robot frame).
+        velocity: (2,) velocity, m/s.
+        accel: (2,) acceleration, m/s².
+        limits: Robot limits.
+        speed: Escape speed, m/s.
+        band: Beams this close to the shortest count, metres.
+
+    Returns:
+        (2,) jerk, m/s³, within ±j_max.
+    """
+    close = scan <= scan.min() + band
+    push = -np.array([np.cos(angles[close]).mean(), np.sin(angles[close]).mean()])
+    norm = float(np.hypot(*push))
+    target = speed * push / norm if norm > 0.2 else np.zeros(2)
+    return track_velocity(velocity, accel, target, limits, gain=limits.a_max)
+

@@ -17,9 +17,9 @@ import typing
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, track_velocity
+from mjnav.baselines.tracking import Limits, escape, track_velocity
 from mjnav.control.action import boundary_distance, goal_inside, map_action_values, radii
-from mjnav.control.mpc import Mpc
+from mjnav.control.guarded import GuardedMpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, RegionFinder, scan_polygon
 from mjnav.tasks import observation as obs_lib
@@ -150,15 +150,14 @@ class NavCore:
         self.config = config
         self._inflation = config.region.inflation
         self.design = get_design(config.design)
-        self._keep_clear = config.region.on_failure == "recover" and self.design.polygon_constraint
         self._angles = beam_angles(config.lidar.beams)
         self._find_region = RegionFinder(self._angles, config.region)
-        self._mpc = Mpc(config.mpc)
+        self._mpc = GuardedMpc(config.mpc, config.region, self.design.polygon_constraint)
         self._columns = np.array(self.design.state_columns)
         self._limits = Limits.from_task(config)
         self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points, self.design.state_size)
         self._reward_terms = reward_lib.weighted_terms(config.reward)
-        self.counters = {"region_failures": 0, "region_recoveries": 0, "fallbacks": 0, "steps": 0}
+        self.counters = {"region_failures": 0, "region_recoveries": 0, "escapes": 0, "fallbacks": 0, "steps": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
 
     # ------------------------------------------------------------------ episode
@@ -178,6 +177,7 @@ class NavCore:
 
     def _region(self, scan: np.ndarray) -> Region:
         """The scan's convex region, or (designs that see the scan) its scan' polygon."""
+        self._scan = scan
         if self.design.observe == "scan":
             return scan_polygon(scan, self._angles, self.config.region)
         region = self._find_region(scan)
@@ -209,6 +209,8 @@ class NavCore:
         motion = [*velocity.tolist(), *accel.tolist(), gx - px, gy - py]
         if not all(map(math.isfinite, motion)):  # checked once here, so the action layer need not
             raise ValueError(f"robot state is not finite: p={position}, v={velocity}, a={accel}")
+        if self._mpc.must_escape(self.region):
+            return self._plan_escape(position, velocity, accel)
         if self.design.action == "velocity":
             return self._plan_velocity(action, position, velocity, accel)
         if self.design.action == "long_point":
@@ -216,12 +218,9 @@ class NavCore:
         t0 = time.perf_counter()
         squashed = [0.5 * (1.0 + t) for t in np.tanh(0.5 * action).tolist()]  # sigmoid(action), on floats
         points = map_action_values(squashed + motion, self.region, self.config.action)
-        region = self.region
-        planes = (region.normals, region.offsets) if region.has_polygon else None
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
-        result = self._mpc.solve_unchecked(state, points.q_s, points.q_l_ref, planes, points.goal_inside,
-                                           self._keep_clear)
+        result = self._mpc.solve(state, points.q_s, points.q_l_ref, self.region, points.goal_inside)
         self.timers["action"] += t1 - t0
         self.timers["mpc"] += time.perf_counter() - t1
         plan_ok = result.fallback is None
@@ -233,13 +232,22 @@ class NavCore:
                        accel: np.ndarray) -> np.ndarray:
         """Designs 1-2: v = v_max·tanh(a) per axis, followed by the jerk-limited velocity tracker."""
         command = self._limits.v_max * np.tanh(action)
-        jerk = track_velocity(velocity, accel, command, self._limits)
+        self._no_plan(position, command * self.config.timing.control_period, None)
+        return track_velocity(velocity, accel, command, self._limits)
+
+    def _plan_escape(self, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
+        """No region even after recovery (``on_failure='recover'``): back away from the nearest returns."""
+        self.counters["fallbacks"] += 1
+        self.counters["escapes"] += 1
+        self._no_plan(position, np.zeros(2), "escape")
+        return escape(self._scan, self._angles, velocity, accel, self._limits, self.config.region.escape_speed)
+
+    def _no_plan(self, position: np.ndarray, step: np.ndarray, fallback: str | None) -> None:
+        """Pending reward inputs and record of a step without an MPC plan (``step``: commanded motion)."""
         here = position.copy()
         self._pending = {"plan": None, "q_s": here, "q_l": here, "q1": here, "qn": here, "plan_ok": False}
-        self.record = StepRecord(here, here, here + command * self.config.timing.control_period, command * 0.0,
-                                 np.zeros((1, 2)), self.region.boundary_xy, False, None, 0.0,
-                                 bool(self.region.success))
-        return jerk
+        self.record = StepRecord(here, here, here + step, np.zeros(2), np.zeros((1, 2)), self.region.boundary_xy,
+                                 False, fallback, 0.0, bool(self.region.success))
 
     def _plan_long_point(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray,
                          accel: np.ndarray) -> np.ndarray:
@@ -255,12 +263,9 @@ class NavCore:
         q_l = beta * min(boundary_distance(self.region, _ORIGIN, direction), r_l) * direction
         goal = self.goal - position
         inside = goal_inside(self.region, goal)
-        region = self.region
-        planes = (region.normals, region.offsets) if region.has_polygon else None
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
-        result = self._mpc.solve_unchecked(state, _ORIGIN, goal if inside else q_l, planes, inside,
-                                           self._keep_clear)
+        result = self._mpc.solve(state, _ORIGIN, goal if inside else q_l, self.region, inside)
         self.timers["action"] += t1 - t0
         self.timers["mpc"] += time.perf_counter() - t1
         plan_ok = result.fallback is None
@@ -296,12 +301,8 @@ class NavCore:
         jerk = np.asarray(planner.act(inp), dtype=np.float64).reshape(2)
         if not np.all(np.isfinite(jerk)):
             raise ValueError(f"planner {type(planner).__name__} returned a non-finite jerk {jerk!r}")
-        jerk = np.clip(jerk, -self.config.mpc.j_max, self.config.mpc.j_max)
-        here = position.copy()
-        self._pending = {"plan": None, "q_s": here, "q_l": here, "q1": here, "qn": here, "plan_ok": False}
-        self.record = StepRecord(here, here, here, np.zeros(2), np.zeros((1, 2)), self.region.boundary_xy, False,
-                                 None, 0.0, bool(self.region.success))
-        return jerk
+        self._no_plan(position, np.zeros(2), None)
+        return np.clip(jerk, -self.config.mpc.j_max, self.config.mpc.j_max)
 
     # ------------------------------------------------------------------ scoring
     def finish_step(

@@ -92,3 +92,19 @@ def test_brake_stops():
         j = brake(v, a, lim)
         v, a = v + a * 0.1 + j * 0.005, a + j * 0.1
     assert np.all(np.abs(v) < 0.05)
+
+
+def test_escape_backs_away_from_the_nearest_returns():
+    """Escape drives the robot away from the nearest beams at the escape speed, and brakes between equal walls."""
+    from mjnav.baselines.tracking import escape
+
+    lim, angles = Limits(), beam_angles(360)
+    scan = np.full(360, 5.0)
+    scan[[0, 1, 359]] = 0.23  # a return just ahead along +x
+    v, a = np.array([0.3, 0.0]), np.zeros(2)
+    for _ in range(20):
+        j = escape(scan, angles, v, a, lim, speed=0.2)
+        v, a = v + a * 0.1 + j * 0.005, a + j * 0.1
+    assert np.allclose(v, [-0.2, 0.0], atol=0.02)
+    scan[[179, 180, 181]] = 0.23  # the same return behind: no way out, stop
+    assert np.allclose(escape(scan, angles, np.zeros(2), np.zeros(2), lim, speed=0.2), 0.0)
