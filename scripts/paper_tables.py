@@ -1,7 +1,7 @@
 """Regenerate a table of the paper from held-out evaluations (see :mod:`mjnav.eval.tables`).
 
     python scripts/paper_tables.py table=2 [episodes=1000] [out=evals/paper] [workers=2]
-                                   [seed_offset=0] [run=true] [action=mean|sample]
+                                   [seed_offset=0] [run=true] [action=mean|expected|sample]
 
 Reads ``<out>/table<K>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
 (``run=false``: report them as missing instead) and prints the table in markdown.
@@ -27,8 +27,8 @@ def main(argv: list[str]) -> int:
         if extra:
             raise ConfigError(f"unexpected task overrides {extra}: tables use each policy's training config")
         table = int(opts["table"])
-        if opts["action"] not in ("mean", "sample"):
-            raise ConfigError(f"action: expected mean or sample, got {opts['action']!r}")
+        if opts["action"] not in ("mean", "expected", "sample"):
+            raise ConfigError(f"action: expected mean, expected or sample, got {opts['action']!r}")
         if table not in STAGES:
             raise ConfigError(f"table: {table} is not available (known: {sorted(STAGES)})")
         rows = table_rows(table, Path(str(opts["out"])), int(opts["episodes"]), int(opts["seed_offset"]),

@@ -32,6 +32,7 @@ import numpy as np
 from mjnav.baselines import PLANNERS, RandomActionPolicy, make_planner
 
 __all__ = [
+    "ACTION_MODES",
     "BASELINES",
     "Agent",
     "TimedPlanner",
@@ -50,6 +51,8 @@ if TYPE_CHECKING:
     from mjnav.tasks.core import Planner, PlannerInput
     from mjnav.tasks.nav import CrowdNavTask
 
+#: Evaluation action modes (see :func:`load_policy`).
+ACTION_MODES = ("mean", "expected", "sample")
 #: Names accepted besides paths.
 BASELINES = (*PLANNERS, "random")
 _DEFAULT_ACTIVATIONS = ("relu", "relu", "hardswish")
@@ -130,6 +133,24 @@ class _SampledActor:
     def __call__(self, observation: np.ndarray) -> np.ndarray:
         mean = self._mean(observation)
         return (mean + self._std * self._rng.standard_normal(mean.shape)).astype(np.float32)
+
+
+class _ExpectedActor:
+    """The expected squashed action of the policy's Gaussian, as one deterministic raw action.
+
+    The environment squashes with a sigmoid, and sigmoid(mean) is not the mean of the squashed
+    actions the policy was trained with: a raw mean far out on the sigmoid turns into a point on
+    the polygon's edge, where sampling would have spread it inwards. E[sigmoid(μ + σε)] is
+    approximated by sigmoid(μ / √(1 + πσ²/8)) (the probit approximation; within 0.02 of the
+    quadrature value), so this returns μ / √(1 + πσ²/8).
+    """
+
+    def __init__(self, mean: Callable[[np.ndarray], np.ndarray], log_std: np.ndarray) -> None:
+        std = np.exp(np.asarray(log_std, dtype=np.float64))
+        self._mean, self._scale = mean, 1.0 / np.sqrt(1.0 + np.pi * std**2 / 8.0)
+
+    def __call__(self, observation: np.ndarray) -> np.ndarray:
+        return (self._mean(observation) * self._scale).astype(np.float32)
 
 
 def _log_std(state: dict) -> np.ndarray:
@@ -252,9 +273,9 @@ def _load_learned(path: Path, mode: str = "mean") -> Agent:
         if _is_checkpoint(path):
             state = torch.load(str(path), map_location="cpu", weights_only=False)
             module = build_actor(state["actor_state_dict"], _activations(path))
-            log_std = _log_std(state["actor_state_dict"]) if mode == "sample" else None
-        elif mode == "sample":
-            raise ValueError(f"policy {str(path)!r}: action=sample needs an rsl-rl checkpoint (model_<it>.pt or "
+            log_std = _log_std(state["actor_state_dict"]) if mode != "mean" else None
+        elif mode != "mean":
+            raise ValueError(f"policy {str(path)!r}: action={mode} needs an rsl-rl checkpoint (model_<it>.pt or "
                              "*_checkpoint.pt); an exported policy.pt holds only the mean")
         else:
             with warnings.catch_warnings():  # TorchScript is deprecated, still the portable format
@@ -267,7 +288,9 @@ def _load_learned(path: Path, mode: str = "mean") -> Agent:
             f"({type(err).__name__}: {reason})"
         ) from err
     actor = _torch_actor(module)
-    return Agent(name, "learned", str(path), actor=actor if log_std is None else _SampledActor(actor, log_std))
+    if log_std is not None:
+        actor = (_SampledActor if mode == "sample" else _ExpectedActor)(actor, log_std)
+    return Agent(name, "learned", str(path), actor=actor)
 
 
 def _is_checkpoint(path: Path) -> bool:
@@ -281,8 +304,10 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "me
     Args:
         spec: Baseline name, file or run directory (or a run name under ``runs_dir``).
         runs_dir: Where run names are looked up.
-        mode: ``mean`` (deterministic, spec §8) or ``sample`` (the training Gaussian; needs a
-            checkpoint; noise seeded by the episode seed).
+        mode: ``mean`` (deterministic, sigmoid of the mean, spec §8), ``expected`` (deterministic,
+            the expected squashed action of the Gaussian, :class:`_ExpectedActor`) or ``sample``
+            (the training Gaussian, noise seeded by the episode seed); the last two need a
+            checkpoint.
 
     Returns:
         The :class:`Agent`.
@@ -296,8 +321,8 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "me
         return Agent("random", "random", "random", actor=RandomActionPolicy())
     if text in PLANNERS:
         return Agent(text, "planner", text, planner=make_planner(text))
-    if mode not in ("mean", "sample"):
-        raise ValueError(f"action: expected 'mean' or 'sample', got {mode!r}")
+    if mode not in ACTION_MODES:
+        raise ValueError(f"action: expected one of {ACTION_MODES}, got {mode!r}")
     return _load_learned(_find(text, runs_dir), mode)
 
 

@@ -380,7 +380,7 @@ def evaluate_tasks(
 # ---------------------------------------------------------------------------- command line
 
 _USAGE = ("usage: evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6] "
-          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|sample] [task.KEY=VALUE ...]")
+          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|expected|sample] [task.KEY=VALUE ...]")
 
 
 def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
@@ -414,8 +414,8 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     except FileNotFoundError as err:
         raise ValueError(str(err)) from None
     action = args.get("action", "mean")
-    if action not in ("mean", "sample"):
-        raise ValueError(f"action: expected mean or sample, got {action!r}")
+    if action not in ("mean", "expected", "sample"):
+        raise ValueError(f"action: expected mean, expected or sample, got {action!r}")
     specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action)
              for t in tasks if t.strip()]
     out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
