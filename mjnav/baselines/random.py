@@ -29,11 +29,11 @@ if TYPE_CHECKING:
 
 
 class RandomActionPolicy:
-    """Raw 4-value actions ~ N(0, std²), for the learned action path."""
+    """Raw actions ~ N(0, std²), for the learned action path (``size`` values: the design's)."""
 
-    def __init__(self, std: float = 1.0) -> None:
-        """``std``: standard deviation of each raw (pre-sigmoid) value."""
-        self.std = std
+    def __init__(self, std: float = 1.0, size: int = 4) -> None:
+        """``std``: standard deviation of each raw (pre-sigmoid) value; ``size``: action length."""
+        self.std, self.size = std, size
         self._rng = np.random.default_rng(0)
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -41,9 +41,9 @@ class RandomActionPolicy:
         self._rng = rng
 
     def __call__(self, observation: np.ndarray) -> np.ndarray:
-        """A (4,) float32 raw action (the observation is ignored)."""
+        """A (size,) float32 raw action (the observation is ignored)."""
         del observation
-        return (self.std * self._rng.standard_normal(4)).astype(np.float32)
+        return (self.std * self._rng.standard_normal(self.size)).astype(np.float32)
 
 
 class RandomPlanner:

@@ -102,6 +102,8 @@ class Agent:
         """Install on ``task`` (a CrowdNavTask) before its reset for ``episode_seed``."""
         task.planner = self.planner
         self.action_size = task.core.design.action_size
+        if isinstance(self._actor, RandomActionPolicy):
+            self._actor.size = self.action_size
         if isinstance(self._actor, (RandomActionPolicy, _SampledActor)):
             self._actor.reset(np.random.default_rng([episode_seed, 1]))
 

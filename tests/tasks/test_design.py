@@ -86,3 +86,15 @@ def test_a_design_trains_two_iterations(tmp_path: Path) -> None:
         assert runner.current_learning_iteration == 2
     finally:
         env.close()
+
+
+def test_evaluation_agents_act_with_the_design_action_size() -> None:
+    """The random agent and planners emit the design's action length (evaluation and render.py)."""
+    from mjnav.eval.policies import load_policy
+    from mjnav.eval.runner import run_episode
+
+    env = NavGymEnv("stage1", overrides=["design=design1", "timing.episode_steps=20"], seed=0)
+    for name in ("random", "mpc_goal"):
+        metrics, _, _ = run_episode(env, load_policy(name), 2**32 + 1)
+        assert metrics.steps >= 1
+    env.close()
