@@ -3,15 +3,17 @@
 Defaults follow spec §8 (the authors' PPO values) where they are hardware independent and are
 scaled down for a 2-core CPU where they are not:
 
-* rollout: 64 envs x 64 steps = 4,096 transitions per iteration (authors: ~115k), so the policy
-  is updated every ~4 s on two cores. Each adapter step has fixed costs (the hand-off to the
-  worker process, the wait for the slower half, rsl-rl's actor and critic forward passes), which
-  64 environments share better than 16: on stage 7, 5-iteration runs gave 926-993 env steps/s
-  against 692-736 for 16 envs x 256 steps. 64 steps is 1.3x the effective horizon
-  1/(1-γ) = 50 steps; rsl-rl bootstraps each cut rollout from the critic, and stage 1 -> 2
-  trained to the same success as with 256-step rollouts (``docs/results.md``).
-* update: 5 epochs x 4 minibatches of 1,024 = 20 gradient steps per iteration (the authors' 16
-  passes over 115k transitions would overfit a 4k batch).
+* rollout: 64 envs x 256 steps = 16,384 transitions per iteration (authors: ~115k). Until
+  2026-12-02 it was 64 x 64 = 4,096, which trained stage 2 under the contact rule but, under the
+  paper's collision rule (``task.collision=scan``), swung between a timid and a reckless policy
+  and collapsed with more steps (measured when the issue was filed: return down to -190 near
+  2.4M steps, 34.7 % held-out success at 4M);
+  with 16,384 per update stochastic training success rose steadily (0.99 by 1.1M steps on
+  stage 2) and held (``docs/results.md``). More environments per adapter step share its fixed
+  costs (the hand-off to the worker process, the wait for the slower half, rsl-rl's actor and
+  critic forward passes), so 64 environments are kept; the longer rollout costs nothing per step.
+* update: 5 epochs x 4 minibatches of 4,096 = 20 gradient steps per iteration (the authors: 16
+  passes in minibatches of 32,768 over 115k transitions).
 * entropy 0.005 and rsl-rl's KL-adaptive learning rate (desired KL 0.01, starting at 1e-4)
   instead of the authors' 0.05 and fixed 1e-4. Measured on stage 2 (init from the same stage-1
   policy, same batch): with 0.05/fixed the exploration std grew every iteration (0.64 -> 0.79)
@@ -142,7 +144,7 @@ class TrainConfig:
     workers: int = -1
     start_method: Literal["forkserver", "spawn"] = "forkserver"
     iterations: int = 1000
-    steps_per_env: int = 64
+    steps_per_env: int = 256
     learning_rate: float = 1e-4
     gamma: float = 0.98
     lam: float = 0.98

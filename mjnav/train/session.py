@@ -114,7 +114,7 @@ def curriculum_iterations(train: TrainConfig) -> int:
 
     A curriculum stops at ``train.iterations``; without ``train.iterations=`` on the command line
     the cap is this, so ``curriculum=true`` walks to ``last_stage`` even if no stage is promoted
-    early (e.g. 7 stages × ceil(3M / 4,096) = 5,131 iterations with the defaults).
+    early (e.g. 7 stages × ceil(3M / 16,384) = 1,288 iterations with the defaults).
     """
     cfg = train.curriculum
     per_stage = math.ceil(cfg.stage_steps / (train.num_envs * train.steps_per_env))

@@ -309,8 +309,8 @@ def test_bad_resume_or_init_fails_before_anything_starts(tmp_path: Path) -> None
 def test_curriculum_cap_defaults_to_every_stage_budget() -> None:
     """curriculum=true without train.iterations runs long enough to spend all seven budgets."""
     plan = session.plan_run(session.parse_args(["curriculum=true"]))
-    assert plan.train.iterations == 7 * math.ceil(3_000_000 / 4096) == 5131
-    two = ["curriculum=true", "train.curriculum.first_stage=6", "train.curriculum.stage_steps=4097"]
+    assert plan.train.iterations == 7 * math.ceil(3_000_000 / 16384) == 1288
+    two = ["curriculum=true", "train.curriculum.first_stage=6", "train.curriculum.stage_steps=16385"]
     assert session.plan_run(session.parse_args(two)).train.iterations == 2 * 2
     assert session.plan_run(session.parse_args([*two, "train.iterations=3"])).train.iterations == 3
     assert session.plan_run(session.parse_args(["task=stage1"])).train.iterations == 1000
