@@ -149,20 +149,24 @@ def _paper(values: tuple[float, ...]) -> str:
 
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
-    """Markdown: stage, method, paper, ours (paper's rule), ours (contact), time/distance/speed, mode."""
+    """Markdown: stage, method, paper, ours under both rules (success with CI, collisions), time/distance/speed
+    over the successes under the paper's rule, action mode, episodes."""
     head = ("| stage | method | paper success % (time, distance, speed) | success %, paper's rule [95 % CI] "
-            "| collision %, paper's rule | success %, contact rule [95 % CI] | time s | distance m | speed m/s "
-            "| action | episodes |")
-    lines = [head, "|" + "---|" * 11]
+            "| collision %, paper's rule | success %, contact rule [95 % CI] | collision %, contact rule "
+            "| time s | distance m | speed m/s | action | episodes |")
+    lines = [head, "|" + "---|" * 12]
     for row in rows:
         if row["status"] != "ok":
             lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {row['status']} "
-                         f"(`{row['policy']}`) | | | | | | | |")
+                         f"(`{row['policy']}`) | | | | | | | | |")
             continue
         scan = row.get("scan") or {}
-        coll = f"{100 * scan['collision'] / scan['episodes']:.1f}" if scan else "–"
         metric = [f"{scan[k]:.2f}" if scan and not math.isnan(scan[k]) else "–" for k in ("time", "distance", "speed")]
-        lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {_pct(row.get('scan'))} | {coll} "
-                     f"| {_pct(row.get('contact'))} | {' | '.join(metric)} | {row.get('mode', 'mean')} "
-                     f"| {scan.get('episodes', '–')} |")
+        lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {_pct(scan)} "
+                     f"| {_collisions(scan)} | {_pct(row.get('contact'))} | {_collisions(row.get('contact'))} "
+                     f"| {' | '.join(metric)} | {row.get('mode', 'mean')} | {scan.get('episodes', '–')} |")
     return "\n".join(lines) + "\n"
+
+
+def _collisions(stats: dict[str, Any] | None) -> str:
+    return f"{100 * stats['collision'] / stats['episodes']:.1f}" if stats else "–"
