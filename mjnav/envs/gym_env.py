@@ -7,10 +7,12 @@ Description:
     obstacles and a crowd of moving cylinders, acting through a learned choice of two reference
     points inside the LiDAR's convex free-space polygon that an MPC tracks (spec §3-§5).
 Action Space:
-    ``Box(-inf, inf, (4,), float32)``: raw (α_s, β_s, α_l, β_l), squashed by a sigmoid inside.
+    ``Box(-inf, inf, (4,), float32)``: raw (α_s, β_s, α_l, β_l), squashed by a sigmoid inside
+    (``design=design1|design2``: (v_x, v_y) before tanh; ``design3``: (α_l, β_l); see
+    :mod:`mjnav.tasks.design`).
 Observation Space:
     ``Box(-inf, inf, (399,), float32)``: 3 stacked frames of the 60-point polygon encoding and a
-    13-value state block (spec §6).
+    13-value state block (spec §6); the designs keep 372 / 372 / 387 / 396 values.
 Rewards:
     Σ weight·term over success, collision, proximity, approach, feasibility, change, slow,
     velocity_change (spec §7; variant by ``reward.variant``); ``info["reward_terms"]`` has each.
@@ -22,7 +24,9 @@ Episode End:
 Arguments:
     ``gymnasium.make("mjnav/Stage6-v1", overrides=["crowd.count=25"])``.
 Version History:
-    v1: first release.
+    v1: first release. 2026-12-02, same id: a failed region is recovered (``region.on_failure``,
+    default ``recover``; ``paper`` restores the first release's behaviour) and ``design`` selects
+    the paper's ablation designs (default ``ours``, unchanged).
 """
 
 from __future__ import annotations
