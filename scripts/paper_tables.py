@@ -18,6 +18,7 @@ from mjnav.schema import ConfigError, split_args
 
 def main(argv: list[str]) -> int:
     """Parse ``key=value`` arguments, build the table, print it; returns the exit code."""
+    from mjnav.eval.policies import ACTION_MODES
     from mjnav.eval.tables import STAGES, format_table, table_rows
 
     defaults = {"table": 2, "episodes": 1000, "out": "evals/paper", "workers": os.cpu_count() or 1,
@@ -27,8 +28,8 @@ def main(argv: list[str]) -> int:
         if extra:
             raise ConfigError(f"unexpected task overrides {extra}: tables use each policy's training config")
         table = int(opts["table"])
-        if opts["action"] not in ("mean", "expected", "sample"):
-            raise ConfigError(f"action: expected mean, expected or sample, got {opts['action']!r}")
+        if opts["action"] not in ACTION_MODES:
+            raise ConfigError(f"action: expected one of {ACTION_MODES}, got {opts['action']!r}")
         if table not in STAGES:
             raise ConfigError(f"table: {table} is not available (known: {sorted(STAGES)})")
         rows = table_rows(table, Path(str(opts["out"])), int(opts["episodes"]), int(opts["seed_offset"]),

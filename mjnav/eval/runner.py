@@ -82,7 +82,7 @@ class EvalSpec:
         workers: Processes (0 or 1 = in this process).
         policy_overrides: The task overrides the policy was trained with
             (:func:`mjnav.eval.policies.training_overrides`); ``overrides`` win over them.
-        action: ``mean`` (deterministic) or ``sample`` (the policy's Gaussian, seeded per episode).
+        action: ``mean``, ``expected`` or ``sample`` (:func:`mjnav.eval.policies.load_policy`).
     """
 
     task: str
@@ -407,15 +407,15 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     workers = _integer(args, "workers", os.cpu_count() or 1, minimum=0)
     episodes = _integer(args, "episodes", 1000, minimum=1)
     offset = _integer(args, "seed_offset", 0, minimum=0)
-    from mjnav.eval.policies import training_overrides
+    from mjnav.eval.policies import ACTION_MODES, training_overrides
 
     try:
         trained = training_overrides(args["policy"])
     except FileNotFoundError as err:
         raise ValueError(str(err)) from None
     action = args.get("action", "mean")
-    if action not in ("mean", "expected", "sample"):
-        raise ValueError(f"action: expected mean, expected or sample, got {action!r}")
+    if action not in ACTION_MODES:
+        raise ValueError(f"action: expected one of {ACTION_MODES}, got {action!r}")
     specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action)
              for t in tasks if t.strip()]
     out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))

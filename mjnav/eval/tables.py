@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAPER", "TABLES", "Method", "format_table", "load_rows", "table_rows", "wilson"]
+__all__ = ["PAPER", "TABLES", "format_table", "load_rows", "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
 
@@ -50,9 +50,6 @@ TABLES: dict[int, dict[str, str]] = {
 }
 
 STAGES = {2: ("stage2", "stage3", "stage4")}
-
-Method = tuple[str, str]
-
 
 def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """95 % Wilson score interval of a rate (fractions); (nan, nan) for n = 0."""
@@ -85,8 +82,8 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                run_missing: bool = True, action: str = "mean") -> list[dict[str, Any]]:
     """One row per (stage, method): our numbers under both rules and the paper's.
 
-    Evaluations missing from ``out`` (or made with other episodes, seeds or policy) are run when
-    ``run_missing`` is set, otherwise the row is marked ``missing``.
+    Evaluations missing from ``out`` (or made with other episodes, seeds, policy or action mode)
+    are run when ``run_missing`` is set; otherwise that rule's entry is None (shown as "–").
     """
     from mjnav.eval.runner import EvalSpec, evaluate
     from mjnav.eval.policies import training_overrides

@@ -80,3 +80,12 @@ def random_scan(rng: np.random.Generator, noise: bool = True) -> np.ndarray:
     if noise and rng.random() < 0.7:
         ranges = np.clip(ranges + rng.normal(0.0, 0.05, size=ranges.shape), 0.0, 10.0)
     return ranges
+
+
+def wall_ahead(distance: float) -> np.ndarray:
+    """Noise-free ranges of a straight wall ``distance`` metres ahead along +x (other beams at 8 m)."""
+    cos = np.cos(ANGLES)
+    ranges = np.full(ANGLES.size, 8.0)
+    ahead = cos > 1e-6
+    ranges[ahead] = np.minimum(8.0, distance / cos[ahead])
+    return ranges

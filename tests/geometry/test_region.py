@@ -13,7 +13,7 @@ from scipy.spatial import ConvexHull
 
 from mjnav.geometry.polygon import is_clockwise, is_convex
 from mjnav.geometry.region import Region, RegionConfig, RegionFinder, compute_region
-from tests.geometry.scans import ANGLES, cast, random_scan
+from tests.geometry.scans import ANGLES, cast, random_scan, wall_ahead
 
 CFG = RegionConfig()
 
@@ -284,18 +284,9 @@ def test_hypothesis_circle_scenes(circles, noise_seed):
         assert region.boundary.shape == (60, 2)
 
 
-def _near_wall_scan(distance: float) -> np.ndarray:
-    """A straight wall ``distance`` metres ahead along +x (other beams far), noise-free."""
-    cos = np.cos(ANGLES)
-    ranges = np.full(ANGLES.size, 8.0)
-    ahead = cos > 1e-6
-    ranges[ahead] = np.minimum(8.0, distance / cos[ahead])
-    return ranges
-
-
 def test_recovery_keeps_a_convex_region_clear_of_the_scan_near_a_wall():
     """Within R_inf of a wall the scan fails, but the recovered polygon keeps 0.275 m from every return."""
-    ranges = _near_wall_scan(0.30)
+    ranges = wall_ahead(0.30)
     region = compute_region(ranges, ANGLES)
     assert not region.success and region.status == "touching"
     assert region.recovered and region.has_polygon and region.inflation == pytest.approx(0.275)
@@ -308,14 +299,14 @@ def test_recovery_keeps_a_convex_region_clear_of_the_scan_near_a_wall():
 
 def test_recovery_ladder_uses_the_floor_then_gives_up():
     """Closer than 0.285 m the floor 0.235 m is used; closer than 0.245 m there is no polygon."""
-    assert compute_region(_near_wall_scan(0.26), ANGLES).inflation == pytest.approx(0.235)
-    below = compute_region(_near_wall_scan(0.24), ANGLES)
+    assert compute_region(wall_ahead(0.26), ANGLES).inflation == pytest.approx(0.235)
+    below = compute_region(wall_ahead(0.24), ANGLES)
     assert not below.has_polygon and below.constraint_polygon is None
 
 
 def test_paper_failure_mode_drops_the_polygon():
     """``on_failure='paper'`` gives the spec's failure: no polygon, fallback star boundary."""
-    region = compute_region(_near_wall_scan(0.30), ANGLES, RegionConfig(on_failure="paper"))
+    region = compute_region(wall_ahead(0.30), ANGLES, RegionConfig(on_failure="paper"))
     assert not region.success and not region.recovered and region.constraint_polygon is None
     assert region.boundary.shape == (CFG.num_points, 2)
 
