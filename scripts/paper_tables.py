@@ -1,9 +1,9 @@
 """Regenerate a table of the paper from held-out evaluations (see :mod:`mjnav.eval.tables`).
 
-    python scripts/paper_tables.py table=2 [episodes=1000] [out=evals/paper] [workers=2]
+    python scripts/paper_tables.py table=2|3|4 [episodes=1000] [out=evals/paper] [workers=2]
                                    [seed_offset=0] [run=true] [action=mean|expected|sample]
 
-Reads ``<out>/table<K>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
+Reads ``<out>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
 (``run=false``: report them as missing instead) and prints the table in markdown.
 """
 
@@ -19,7 +19,7 @@ from mjnav.schema import ConfigError, split_args
 def main(argv: list[str]) -> int:
     """Parse ``key=value`` arguments, build the table, print it; returns the exit code."""
     from mjnav.eval.policies import ACTION_MODES
-    from mjnav.eval.tables import STAGES, format_table, table_rows
+    from mjnav.eval.tables import TABLES, format_table, table_rows
 
     defaults = {"table": 2, "episodes": 1000, "out": "evals/paper", "workers": os.cpu_count() or 1,
                 "seed_offset": 0, "run": True, "action": "mean"}
@@ -30,14 +30,14 @@ def main(argv: list[str]) -> int:
         table = int(opts["table"])
         if opts["action"] not in ACTION_MODES:
             raise ConfigError(f"action: expected one of {ACTION_MODES}, got {opts['action']!r}")
-        if table not in STAGES:
-            raise ConfigError(f"table: {table} is not available (known: {sorted(STAGES)})")
+        if table not in TABLES:
+            raise ConfigError(f"table: {table} is not available (known: {sorted(TABLES)})")
         rows = table_rows(table, Path(str(opts["out"])), int(opts["episodes"]), int(opts["seed_offset"]),
                           int(opts["workers"]), bool(opts["run"]), str(opts["action"]))
     except (ConfigError, ValueError, FileNotFoundError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(format_table(rows), end="")
+    print(format_table(rows, TABLES[table].abs_acc), end="")
     return 0
 
 

@@ -1,55 +1,99 @@
 """The paper's tables from held-out evaluations, with the paper's numbers side by side.
 
-``python scripts/paper_tables.py table=2`` reads one evaluation JSONL per (method, stage,
-collision rule) from ``out`` (default ``evals/paper``), runs the missing evaluations
-(:func:`mjnav.eval.runner.evaluate`, ``episodes`` held-out scenarios each, the policy's own
-training config plus ``collision=scan`` or ``collision=contact``), and prints one row per method and
-stage: our success under the paper's collision rule (shrunk scan ≤ 0) and under MuJoCo contacts,
-each with a 95 % Wilson interval, the paper's success, and time / distance / speed over the
-successful episodes under the paper's rule. A method whose policy file does not exist is listed
-as "not trained", never estimated. ``action=mean`` (default, spec §8) acts on the policy's mean
-through the shipped ``*_policy.pt`` / ``*.pt``; ``action=sample`` samples its Gaussian through the
-shipped ``*_checkpoint.pt``.
+``python scripts/paper_tables.py table=K`` (K = 2: Designs 1-4 and Ours on stages 2-4; 3: the
+reward ablation r_t1-r_t4 on stages 5-7, with Total Abs Acc; 4: Ours against TEB on stages 5-7)
+reads one evaluation JSONL per (method, stage, collision rule) from ``out`` (default
+``evals/paper``), runs the missing evaluations (:func:`mjnav.eval.runner.evaluate`, ``episodes``
+held-out scenarios each, the policy's own training config plus ``collision=scan`` or
+``collision=contact``), and prints one row per method and stage: our success under the paper's
+collision rule (shrunk scan ≤ 0) and under MuJoCo contacts, each with a 95 % Wilson interval, the
+paper's success, and time / distance / speed over the successful episodes under the paper's rule.
+A method whose policy file does not exist is listed as "not trained", never estimated.
+``action=mean`` (default, spec §8) acts on the policy's mean through the shipped ``*_policy.pt`` /
+``*.pt``; ``action=sample`` samples its Gaussian through the shipped ``*_checkpoint.pt``.
 
-Files: ``<out>/table<K>/<method>/<stage>_<rule>.jsonl`` (the evaluation runner's JSONL). A file
-whose episode count, seed offset or policy differs from the request is evaluated again.
+Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
+a policy shared by two tables is evaluated once). A file whose episode count, seed offset, policy
+or action mode differs from the request is evaluated again.
 """
-
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAPER", "TABLES", "format_table", "load_rows", "table_rows", "wilson"]
+__all__ = ["TABLES", "Method", "Table", "format_table", "load_rows", "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
 
-#: Paper's success % (time s, distance m, speed m/s) per table, method and stage (spec §11).
-PAPER: dict[int, dict[str, dict[str, tuple[float, ...]]]] = {
-    2: {
-        "Design 1": {"stage2": (76, 4.0, 11.28, 2.87), "stage3": (79.9, 4.0, 11.37, 2.9), "stage4": (80.9, 3.9, 11.25, 2.95)},
-        "Design 2": {"stage2": (76, 4.0, 11.11, 2.8), "stage3": (79,), "stage4": (75.1,)},
-        "Design 3": {"stage2": (90.3, 9.0, 15.26, 1.72), "stage3": (87.8, 8.8, 15.42, 1.77), "stage4": (84.5,)},
-        "Design 4": {"stage2": (83, 5.0, 11.66, 2.23), "stage3": (83.5, 4.9, 11.59, 2.24), "stage4": (83.7,)},
-        "Ours": {"stage2": (89.2, 5.5, 12.19, 2.18), "stage3": (89.1, 5.9, 13.04, 2.17), "stage4": (85.5, 5.8, 12.51, 2.1)},
-    },
+
+@dataclasses.dataclass(frozen=True)
+class Method:
+    """One row family of a paper table.
+
+    Attributes:
+        name: As the paper names it (``Ours``, ``Design 1``, ``r_t2``, ``TEB``).
+        policy: Policy spec, ``{stage}`` filled in per stage: a shipped file (missing = "not
+            trained") or a baseline name (``teb``).
+        slug: Folder of its evaluations under ``out``; methods that evaluate the same policy share
+            it (``Ours`` of Table IV is ``r_t1`` of Table III).
+        paper: Stage -> the paper's (success %, time s, distance m, speed m/s[, Total Abs Acc]).
+    """
+
+    name: str
+    policy: str
+    slug: str
+    paper: dict[str, tuple[float, ...]]
+
+
+@dataclasses.dataclass(frozen=True)
+class Table:
+    """A paper table: stages (rows grouped by stage), methods, and whether Total Abs Acc is shown."""
+
+    stages: tuple[str, ...]
+    methods: tuple[Method, ...]
+    abs_acc: bool = False
+
+
+_OURS_CROWD = {"stage5": (87.1, 2.9, 4.59, 1.57, 26475.46), "stage6": (78.1, 2.9, 4.12, 1.42, 19507.60),
+               "stage7": (68.5, 3.1, 4.22, 1.36, 6348.57)}
+
+#: The paper's tables II-IV (spec §11): methods, their shipped policies, the paper's numbers.
+TABLES: dict[int, Table] = {
+    2: Table(("stage2", "stage3", "stage4"), (
+        Method("Design 1", "docs/policies/stage4_design1.pt", "design1",
+               {"stage2": (76, 4.0, 11.28, 2.87), "stage3": (79.9, 4.0, 11.37, 2.9), "stage4": (80.9, 3.9, 11.25, 2.95)}),
+        Method("Design 2", "docs/policies/stage4_design2.pt", "design2",
+               {"stage2": (76, 4.0, 11.11, 2.8), "stage3": (79,), "stage4": (75.1,)}),
+        Method("Design 3", "docs/policies/stage4_design3.pt", "design3",
+               {"stage2": (90.3, 9.0, 15.26, 1.72), "stage3": (87.8, 8.8, 15.42, 1.77), "stage4": (84.5,)}),
+        Method("Design 4", "docs/policies/stage4_design4.pt", "design4",
+               {"stage2": (83, 5.0, 11.66, 2.23), "stage3": (83.5, 4.9, 11.59, 2.24), "stage4": (83.7,)}),
+        Method("Ours", "docs/policies/{stage}_policy.pt", "ours",
+               {"stage2": (89.2, 5.5, 12.19, 2.18), "stage3": (89.1, 5.9, 13.04, 2.17), "stage4": (85.5, 5.8, 12.51, 2.1)}),
+    )),
+    3: Table(("stage5", "stage6", "stage7"), (
+        Method("r_t1", "docs/policies/{stage}_policy.pt", "ours", _OURS_CROWD),
+        Method("r_t2", "docs/policies/stage7_r_t2.pt", "r_t2",
+               {"stage5": (87.8, 2.9, 4.65, 1.57, 27600.56), "stage6": (77.3, 2.8, 4.10, 1.43, 20397.66),
+                "stage7": (69.9, 3.0, 4.15, 1.37, 7218.53)}),
+        Method("r_t3", "docs/policies/stage7_r_t3.pt", "r_t3",
+               {"stage5": (84.8, 3.4, 4.38, 1.40, 27781.34), "stage6": (73.1, 3.4, 3.85, 1.25, 21988.81),
+                "stage7": (67.1, 3.6, 3.98, 1.19, 6080.69)}),
+        Method("r_t4", "docs/policies/stage7_r_t4.pt", "r_t4",
+               {"stage5": (86.7, 2.9, 4.65, 1.58, 26460.66), "stage6": (74.6, 3.0, 4.35, 1.46, 19950.77),
+                "stage7": (65.3, 2.9, 3.88, 1.36, 5668.30)}),
+    ), abs_acc=True),
+    4: Table(("stage5", "stage6", "stage7"), (
+        Method("TEB", "teb", "teb",
+               {"stage5": (77.1, 4.4, 4.64, 1.11), "stage6": (65.2, 4.0, 4.21, 1.10), "stage7": (57.8, 3.8, 3.87, 1.07)}),
+        Method("Ours", "docs/policies/{stage}_policy.pt", "ours", {k: v[:4] for k, v in _OURS_CROWD.items()}),
+    )),
 }
 
-#: Method → policy spec per stage (``{stage}`` is filled in), per table.
-TABLES: dict[int, dict[str, str]] = {
-    2: {
-        "Design 1": "docs/policies/stage4_design1.pt",
-        "Design 2": "docs/policies/stage4_design2.pt",
-        "Design 3": "docs/policies/stage4_design3.pt",
-        "Design 4": "docs/policies/stage4_design4.pt",
-        "Ours": "docs/policies/{stage}_policy.pt",
-    },
-}
-
-STAGES = {2: ("stage2", "stage3", "stage4")}
 
 def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """95 % Wilson score interval of a rate (fractions); (nan, nan) for n = 0."""
@@ -75,7 +119,13 @@ def _stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {"episodes": n, "success": len(wins), "collision": sum(r["outcome"] == "collision" for r in rows)}
     for key, name in (("time_s", "time"), ("distance_m", "distance"), ("mean_speed", "speed")):
         out[name] = sum(r["metrics"][key] for r in wins) / len(wins) if wins else math.nan
+    out["abs_acc"] = sum(r["metrics"].get("abs_acc_sum", math.nan) for r in wins)  # the paper's sum over successes
     return out
+
+
+def evaluation_path(out: Path, method: Method, stage: str, rule: str, action: str) -> Path:
+    """``<out>/<slug>/<stage>_<rule>[_<action>].jsonl`` (no suffix for the mean action)."""
+    return out / method.slug / f"{stage}_{rule}{'' if action == 'mean' else '_' + action}.jsonl"
 
 
 def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, workers: int = 2,
@@ -84,34 +134,35 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
 
     Evaluations missing from ``out`` (or made with other episodes, seeds, policy or action mode)
     are run when ``run_missing`` is set; otherwise that rule's entry is None (shown as "–").
+    Baselines (``teb``) have no action mode and always act as themselves.
     """
+    from mjnav.eval.policies import BASELINES, training_overrides
     from mjnav.eval.runner import EvalSpec, evaluate
-    from mjnav.eval.policies import training_overrides
 
     rows = []
-    for stage in STAGES[table]:
-        for method, pattern in TABLES[table].items():
-            policy = _policy_file(pattern.format(stage=stage), action)
-            row: dict[str, Any] = {"stage": stage, "method": method, "policy": policy,
-                                   "paper": PAPER[table][method].get(stage, ())}
-            if not Path(policy).is_file():
+    for stage in TABLES[table].stages:
+        for method in TABLES[table].methods:
+            baseline = method.policy in BASELINES
+            mode = "mean" if baseline else action
+            policy = method.policy if baseline else _policy_file(method.policy.format(stage=stage), mode)
+            row: dict[str, Any] = {"stage": stage, "method": method.name, "policy": policy,
+                                   "paper": method.paper.get(stage, ()), "mode": "–" if baseline else mode}
+            if not baseline and not Path(policy).is_file():
                 rows.append({**row, "status": "not trained"})
                 continue
             for rule in RULES:
-                mode = "" if action == "mean" else f"_{action}"
-                path = out / f"table{table}" / method.replace(" ", "").lower() / f"{stage}_{rule}{mode}.jsonl"
+                path = evaluation_path(out, method, stage, rule, mode)
                 found = load_rows(path)
-                if not _matches(found, episodes, seed_offset, policy, action):
+                if not _matches(found, episodes, seed_offset, policy, mode):
                     if not run_missing:
                         row[rule] = None
                         continue
                     spec = EvalSpec(stage, policy, episodes, seed_offset, (f"collision={rule}",), workers,
-                                    training_overrides(policy), action)
+                                    training_overrides(policy), mode)
                     evaluate(spec, path.parent, progress=True)
                     path.parent.joinpath(f"{stage}.jsonl").replace(path)
                     found = load_rows(path)
                 row[rule] = _stats(found)
-                row["mode"] = found[0].get("action_mode", "mean")
             rows.append({**row, "status": "ok"})
     return rows
 
@@ -142,27 +193,38 @@ def _pct(stats: dict[str, Any] | None) -> str:
 def _paper(values: tuple[float, ...]) -> str:
     if not values:
         return "–"
-    return f"{values[0]:g}" + (f" ({values[1]:g} s, {values[2]:g} m, {values[3]:g} m/s)" if len(values) == 4 else "")
+    text = f"{values[0]:g}"
+    if len(values) >= 4:
+        text += f" ({values[1]:g} s, {values[2]:g} m, {values[3]:g} m/s" + (f", {values[4]:g}" if len(values) > 4 else "") + ")"
+    return text
 
 
-def format_table(rows: Sequence[dict[str, Any]]) -> str:
+def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False) -> str:
     """Markdown: stage, method, paper, ours under both rules (success with CI, collisions), time/distance/speed
-    over the successes under the paper's rule, action mode, episodes."""
-    head = ("| stage | method | paper success % (time, distance, speed) | success %, paper's rule [95 % CI] "
-            "| collision %, paper's rule | success %, contact rule [95 % CI] | collision %, contact rule "
-            "| time s | distance m | speed m/s | action | episodes |")
-    lines = [head, "|" + "---|" * 12]
+    (and, with ``abs_acc``, the paper's Total Abs Acc) over the successes under the paper's rule, action mode,
+    episodes."""
+    extra = ["time s", "distance m", "speed m/s"] + (["Total Abs Acc"] if abs_acc else [])
+    paper = "paper success % (time, distance, speed" + (", Total Abs Acc)" if abs_acc else ")")
+    head = (f"| stage | method | {paper} | success %, paper's rule [95 % CI] | collision %, paper's rule "
+            f"| success %, contact rule [95 % CI] | collision %, contact rule | {' | '.join(extra)} | action | episodes |")
+    cols = 9 + len(extra)
+    lines = [head, "|" + "---|" * cols]
+    keys = ("time", "distance", "speed", "abs_acc")[: len(extra)]
     for row in rows:
         if row["status"] != "ok":
             lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {row['status']} "
-                         f"(`{row['policy']}`) | | | | | | | | |")
+                         f"(`{row['policy']}`) |" + " |" * (cols - 4))
             continue
         scan = row.get("scan") or {}
-        metric = [f"{scan[k]:.2f}" if scan and not math.isnan(scan[k]) else "–" for k in ("time", "distance", "speed")]
+        metric = [_number(scan.get(k), 1 if k == "abs_acc" else 2) for k in keys]
         lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {_pct(scan)} "
                      f"| {_collisions(scan)} | {_pct(row.get('contact'))} | {_collisions(row.get('contact'))} "
                      f"| {' | '.join(metric)} | {row.get('mode', 'mean')} | {scan.get('episodes', '–')} |")
     return "\n".join(lines) + "\n"
+
+
+def _number(value: float | None, digits: int) -> str:
+    return "–" if value is None or math.isnan(value) else f"{value:.{digits}f}"
 
 
 def _collisions(stats: dict[str, Any] | None) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -20,7 +21,8 @@ def test_wilson_interval_brackets_the_rate() -> None:
 
 def test_missing_policies_are_listed_as_not_trained(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A method without its policy file gets "not trained", never a number."""
-    monkeypatch.setitem(tables.TABLES, 2, {"Ours": str(tmp_path / "{stage}_policy.pt")})
+    ours = tables.Method("Ours", str(tmp_path / "{stage}_policy.pt"), "ours", {})
+    monkeypatch.setitem(tables.TABLES, 2, tables.Table(("stage2", "stage3", "stage4"), (ours,)))
     rows = tables.table_rows(2, tmp_path, episodes=5, run_missing=False)
     assert [r["status"] for r in rows] == ["not trained"] * 3
     assert "not trained" in tables.format_table(rows)
@@ -30,10 +32,10 @@ def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: py
     """Matching JSONL files are summarised under both rules with the paper's number beside them."""
     policy = tmp_path / "stage2_policy.pt"
     policy.write_bytes(b"x")
-    monkeypatch.setitem(tables.TABLES, 2, {"Ours": str(tmp_path / "{stage}_policy.pt")})
-    monkeypatch.setitem(tables.STAGES, 2, ("stage2",))
+    ours = dataclasses.replace(tables.TABLES[2].methods[-1], policy=str(tmp_path / "{stage}_policy.pt"))
+    monkeypatch.setitem(tables.TABLES, 2, tables.Table(("stage2",), (ours,)))
     for rule, wins in (("scan", 3), ("contact", 4)):
-        path = tmp_path / "out" / "table2" / "ours" / f"stage2_{rule}.jsonl"
+        path = tmp_path / "out" / "ours" / f"stage2_{rule}.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
         lines = [{"policy_source": str(policy), "index": i, "seed": 2**32 + i, "action_mode": "mean",
                   "outcome": "success" if i < wins else "collision",
@@ -45,3 +47,28 @@ def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: py
     assert "| stage2 | Ours | 89.2 (5.5 s, 12.19 m, 2.18 m/s) | 60.0 [" in text and "| 80.0 [" in text
     stale = tables.table_rows(2, tmp_path / "out", episodes=6, run_missing=False)
     assert stale[0]["scan"] is None  # other episode count: not reused
+
+
+def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Table III's r_t1 and Table IV's Ours read the same evaluations; TEB is a baseline, never "not trained"."""
+    policy = tmp_path / "stage5_policy.pt"
+    policy.write_bytes(b"x")
+    for number in (3, 4):
+        table = tables.TABLES[number]
+        methods = tuple(dataclasses.replace(m, policy=str(tmp_path / "{stage}_policy.pt")) if m.slug == "ours" else m
+                        for m in table.methods)
+        monkeypatch.setitem(tables.TABLES, number, dataclasses.replace(table, stages=("stage5",), methods=methods))
+    for rule in tables.RULES:
+        path = tmp_path / "out" / "ours" / f"stage5_{rule}.jsonl"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lines = [{"policy_source": str(policy), "index": i, "seed": 2**32 + i, "action_mode": "mean", "outcome": "success",
+                  "metrics": {"time_s": 3.0, "distance_m": 4.5, "mean_speed": 1.5, "abs_acc_sum": 10.0}} for i in range(4)]
+        path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    three = tables.table_rows(3, tmp_path / "out", episodes=4, run_missing=False)
+    four = tables.table_rows(4, tmp_path / "out", episodes=4, run_missing=False)
+    assert three[0]["scan"] == four[1]["scan"] and three[0]["scan"]["abs_acc"] == pytest.approx(40.0)
+    assert [r["status"] for r in three[1:]] == ["not trained"] * 3  # r_t2..r_t4 not shipped here
+    assert four[0]["method"] == "TEB" and four[0]["status"] == "ok" and four[0]["scan"] is None  # not run
+    text = tables.format_table(three, abs_acc=True)
+    assert "Total Abs Acc" in text and "| 40.0 |" in text and "87.1 (2.9 s, 4.59 m, 1.57 m/s, 26475.5)" in text
+    assert all(line.count("|") == text.splitlines()[0].count("|") for line in text.splitlines())
