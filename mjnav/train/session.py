@@ -10,6 +10,12 @@ Arguments are ``key=value`` (values parsed as YAML)::
     init=CHECKPOINT        start a new run from a checkpoint's actor and critic weights
     curriculum=true        walk stage1 -> stage7 (train.curriculum.*); without train.iterations= the
                            cap is every stage's whole budget (:func:`curriculum_iterations`)
+    start=auto             where a new run on stage K starts (:func:`resolve_start`): ``shipped``
+                           (init from ``docs/policies/stage<K-1>_checkpoint.pt`` with the task
+                           overrides it was trained with, one stage budget), ``curriculum`` (walk
+                           stage 1 -> K), ``scratch`` (random weights, stage K only); ``auto``
+                           (default) is ``shipped`` where that file exists, else ``curriculum``
+                           for K >= 2, else ``scratch``; init=/resume=/curriculum=true win
     out=runs               parent folder of the run folders
 
 Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
@@ -44,9 +50,15 @@ from mjnav.train.runner import (
     save_checkpoint,
 )
 
-__all__ = ["RunArgs", "RunPlan", "check_device", "curriculum_iterations", "parse_args", "plan_run", "run"]
+__all__ = [
+    "RunArgs", "RunPlan", "check_device", "curriculum_iterations", "parse_args", "plan_run", "resolve_start", "run",
+    "shipped_checkpoint",
+]
 
-_TOP_LEVEL = {"task": str, "seed": int, "resume": str, "init": str, "curriculum": bool, "out": str}
+_TOP_LEVEL = {"task": str, "seed": int, "resume": str, "init": str, "curriculum": bool, "out": str, "start": str}
+START_MODES = ("auto", "shipped", "curriculum", "scratch")
+#: Shipped policies of a source checkout (absent from an installed wheel: ``start=auto`` then walks the curriculum).
+SHIPPED_POLICIES = Path(__file__).resolve().parents[2] / "docs" / "policies"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,6 +72,7 @@ class RunArgs:
     init: str | None = None
     curriculum: bool = False
     out: str = "runs"
+    start: str = "auto"
 
 
 @dataclasses.dataclass
@@ -73,6 +86,7 @@ class RunPlan:
     curriculum: CurriculumState | None = None
     checkpoint: Path | None = None
     init: Path | None = None
+    start: str = "scratch"
 
 
 def parse_args(argv: Sequence[str]) -> RunArgs:
@@ -100,6 +114,8 @@ def parse_args(argv: Sequence[str]) -> RunArgs:
         else:
             known = ", ".join(f"{k}=" for k in _TOP_LEVEL)
             raise ConfigError(f"{key}: unknown argument (known: {known}, task.<key>=, train.<key>=)")
+    if fields.get("start", "auto") not in START_MODES:
+        raise ConfigError(f"start: expected one of {', '.join(START_MODES)}, got {fields['start']!r}")
     return RunArgs(task_overrides=tuple(task_overrides), train_overrides=tuple(train_overrides), **fields)
 
 
@@ -121,25 +137,97 @@ def curriculum_iterations(train: TrainConfig) -> int:
     return (cfg.last_stage - cfg.first_stage + 1) * per_stage
 
 
-def plan_run(args: RunArgs) -> RunPlan:
-    """Resolve configs, run folder and checkpoint of a fresh or resumed run (creates nothing)."""
+def _stage_number(task: str | None) -> int | None:
+    """``3`` for the bundled ``stage3``; None for anything else (a YAML path)."""
+    if task is None or not task.startswith("stage") or not task[5:].isdigit():
+        return None
+    return int(task[5:]) if 1 <= int(task[5:]) <= 7 else None
+
+
+def shipped_checkpoint(stage: int, root: Path | None = None) -> Path | None:
+    """``<root>/stage<stage>_checkpoint.pt`` (root: :data:`SHIPPED_POLICIES`) if it exists."""
+    path = (root or SHIPPED_POLICIES) / f"stage{stage}_checkpoint.pt"
+    return path if path.is_file() else None
+
+
+def resolve_start(args: RunArgs, root: Path | None = None) -> str:
+    """How a new run begins: ``init`` (init= given), ``curriculum`` (curriculum=true or a walk to
+    stage K), ``shipped`` (the previous stage's shipped checkpoint) or ``scratch``.
+
+    Raises:
+        ConfigError: ``start=`` combined with init=/curriculum=true, asked of a task that is not a
+            bundled stage >= 2, or ``start=shipped`` without the shipped file.
+    """
+    explicit = args.start != "auto"
+    if args.init is not None or args.curriculum:
+        if explicit:
+            raise ConfigError("start: cannot be combined with init= or curriculum=true")
+        return "init" if args.init is not None else "curriculum"
+    stage = _stage_number(args.task)
+    if explicit and args.start != "scratch" and (stage is None or stage < 2):
+        raise ConfigError(f"start={args.start}: needs a bundled stage2..stage7 task, got {args.task!r}")
+    if args.start == "shipped" and shipped_checkpoint(stage - 1, root) is None:
+        raise ConfigError(f"start=shipped: no stage{stage - 1}_checkpoint.pt in {root or SHIPPED_POLICIES}")
+    if args.start in ("auto", "shipped") and stage is not None and stage >= 2:
+        found = shipped_checkpoint(stage - 1, root)
+        if found is not None and not _same_design(found, args):
+            if explicit:
+                raise ConfigError(f"start=shipped: {found} was trained with another task.design (its network "
+                                  "does not fit); use start=curriculum or start=scratch")
+            return "curriculum"
+    if explicit:
+        return args.start
+    if stage is None or stage < 2:
+        return "scratch"
+    return "shipped" if shipped_checkpoint(stage - 1, root) else "curriculum"
+
+
+def _same_design(checkpoint: Path, args: RunArgs) -> bool:
+    """The shipped checkpoint's design (observation and action sizes) is the one requested."""
+    from mjnav.eval.policies import training_overrides
+
+    shipped = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
+    wanted = stages.load_stage(args.task, [*training_overrides(checkpoint), *args.task_overrides])  # type: ignore[arg-type]
+    return shipped.design == wanted.design
+
+
+def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
+    """Resolve configs, run folder and checkpoint of a fresh or resumed run (creates nothing).
+
+    ``root``: where shipped policies are looked up (default :data:`SHIPPED_POLICIES`).
+    """
     if args.resume is not None:
+        if args.start != "auto":
+            raise ConfigError("start: cannot be combined with resume=")
         return _plan_resume(args)
+    if args.task is None and not args.curriculum:
+        raise ConfigError("task: required (task=stage6), unless resume=RUN_DIR or curriculum=true")
+    start = resolve_start(args, root)
     train = load_train(list(args.train_overrides))
     overrides = list(args.task_overrides)
-    if args.curriculum:
-        if not any(o.startswith("iterations=") for o in args.train_overrides):
+    given_iterations = any(o.startswith("iterations=") for o in args.train_overrides)
+    init = _check_init(Path(args.init)) if args.init else None
+    state = None
+    if start == "curriculum":
+        if not args.curriculum:  # a walk up to the requested stage
+            train = apply_overrides(train, [f"curriculum.first_stage=1", f"curriculum.last_stage={_stage_number(args.task)}"])
+        if not given_iterations:
             train = apply_overrides(train, [f"iterations={curriculum_iterations(train)}"])
         state = CurriculumState(stage=train.curriculum.first_stage)
         task, label = stages.load_stage(stage_name(state.stage), overrides), "curriculum"
-    elif args.task is None:
-        raise ConfigError("task: required (task=stage6), unless resume=RUN_DIR or curriculum=true")
     else:
-        state, task = None, stages.load_stage(args.task, overrides)
+        if start == "shipped":
+            from mjnav.eval.policies import training_overrides
+
+            init = _check_init(shipped_checkpoint(_stage_number(args.task) - 1, root))  # type: ignore[arg-type,operator]
+            overrides = [*training_overrides(init), *overrides]
+            if not given_iterations:
+                steps = train.num_envs * train.steps_per_env
+                train = apply_overrides(train, [f"iterations={math.ceil(train.curriculum.stage_steps / steps)}"])
+        task = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
         label = task.name
     run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
-    init = _check_init(Path(args.init)) if args.init else None
-    return RunPlan(run_dir, task, train, overrides, state, init=init)
+    return RunPlan(run_dir, task, train, overrides, state, init=init, start=start)
 
 
 def _check_init(path: Path) -> Path:
@@ -278,9 +366,29 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
     return True
 
 
+def _start_line(plan: RunPlan) -> str:
+    """First line of a run: where its weights come from and what it will train."""
+    t = plan.train
+    if plan.checkpoint is not None:
+        return f"start: resuming {plan.run_dir} from {plan.checkpoint}"
+    if plan.curriculum is not None:
+        c = t.curriculum
+        return (f"start: curriculum stage{c.first_stage} -> stage{c.last_stage} from random weights (promotion at "
+                f"{c.threshold:.0%} deterministic success or {c.stage_steps:,} env steps per stage; "
+                f"at most {t.iterations} iterations); start=shipped|scratch to change")
+    steps = t.iterations * t.num_envs * t.steps_per_env
+    if plan.start == "shipped":
+        return (f"start: the shipped policy {plan.init} (task overrides {plan.task_overrides or 'none'}), "
+                f"{plan.task.name} for {t.iterations} iterations = {steps:,} env steps; start=curriculum|scratch to change")
+    if plan.init is not None:
+        return f"start: weights of {plan.init}, {plan.task.name} for {steps:,} env steps"
+    return f"start: random weights, {plan.task.name} for {steps:,} env steps"
+
+
 def _print_header(plan: RunPlan, env: Any, start: int) -> None:
     t = plan.train
     batch = t.num_envs * t.steps_per_env
+    print(_start_line(plan), flush=True)
     print(
         f"run {plan.run_dir} | task {plan.task.name} | {t.num_envs} envs x {t.steps_per_env} steps = {batch} "
         f"transitions/iteration | {t.epochs} epochs x {t.minibatches} minibatches of "

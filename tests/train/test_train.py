@@ -346,3 +346,32 @@ def test_session_fresh_resume_and_curriculum(tmp_path: Path, monkeypatch: pytest
         "success"
     ] >= 0.9
     assert (run_dir / "policy.pt").exists()
+
+
+def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curriculum(tmp_path: Path) -> None:
+    """``task=stage6`` alone: the shipped stage-5 checkpoint with its training overrides and one stage
+    budget; without it, the curriculum from stage 1 up to stage 6; the choice can be forced or refused."""
+    torch.save({"actor_state_dict": {}, "critic_state_dict": {}}, tmp_path / "stage5_checkpoint.pt")
+    (tmp_path / "stage5_config.yaml").write_text("run:\n  task_overrides: [collision=scan]\n")
+    plan = session.plan_run(session.parse_args(["task=stage6", "task.crowd.count=12"]), root=tmp_path)
+    assert plan.start == "shipped" and plan.init == tmp_path / "stage5_checkpoint.pt"
+    assert plan.task.collision == "scan" and plan.task.crowd.count == 12  # the command's overrides win
+    assert plan.train.iterations == -(-plan.train.curriculum.stage_steps // (plan.train.num_envs * plan.train.steps_per_env))
+    assert "shipped policy" in session._start_line(plan)
+    walk = session.plan_run(session.parse_args(["task=stage6"]), root=tmp_path / "none")
+    assert walk.start == "curriculum" and walk.task.name == "stage1"
+    assert (walk.train.curriculum.first_stage, walk.train.curriculum.last_stage) == (1, 6)
+    assert "curriculum stage1 -> stage6" in session._start_line(walk)
+    scratch = session.plan_run(session.parse_args(["task=stage6", "start=scratch"]), root=tmp_path)
+    assert scratch.init is None and scratch.task.name == "stage6" and scratch.curriculum is None
+    assert session.plan_run(session.parse_args(["task=stage1"]), root=tmp_path).start == "scratch"
+    with pytest.raises(ConfigError, match="start=shipped: no stage6_checkpoint"):
+        session.plan_run(session.parse_args(["task=stage7", "start=shipped"]), root=tmp_path)
+    with pytest.raises(ConfigError, match="start: expected one of"):
+        session.parse_args(["task=stage6", "start=later"])
+    with pytest.raises(ConfigError, match="cannot be combined"):
+        session.plan_run(session.parse_args(["task=stage6", "start=scratch", f"init={tmp_path / 'stage5_checkpoint.pt'}"]))
+    design = session.plan_run(session.parse_args(["task=stage6", "task.design=design1"]), root=tmp_path)
+    assert design.start == "curriculum"  # the shipped network does not fit design 1's observation
+    with pytest.raises(ConfigError, match="another task.design"):
+        session.plan_run(session.parse_args(["task=stage6", "task.design=design1", "start=shipped"]), root=tmp_path)
