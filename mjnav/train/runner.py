@@ -25,6 +25,7 @@ import contextlib
 import dataclasses
 import functools
 import math
+import os
 import re
 import signal
 import sys
@@ -171,8 +172,25 @@ def build_runner(
         )
     runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
     _thread_the_update(runner, train.update_threads or usable_cores())
+    _atomic_saves(runner)
     runner.mjnav_verbose = train.verbose  # type: ignore[attr-defined]
     return runner
+
+
+def _atomic_saves(runner: OnPolicyRunner) -> None:
+    """Make every checkpoint write atomic: rsl-rl writes ``<path>.partial``, which then replaces
+    ``<path>`` in one rename, so a run killed mid-write (SIGKILL, power) leaves the previous
+    checkpoints intact and never a truncated ``model_<it>.pt`` (:func:`checkpoints` ignores the
+    ``.partial`` file). Wraps ``runner.save`` on the instance, as for the update."""
+    save = runner.save
+
+    @functools.wraps(save)
+    def atomic_save(path: str, *args: Any, **kwargs: Any) -> None:
+        partial = f"{path}.partial"
+        save(partial, *args, **kwargs)
+        os.replace(partial, path)
+
+    runner.save = atomic_save
 
 
 def _thread_the_update(runner: OnPolicyRunner, threads: int) -> None:

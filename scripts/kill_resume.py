@@ -1,0 +1,120 @@
+"""Kill a stage-1 training run with SIGKILL at random moments and resume it each time.
+
+    python scripts/kill_resume.py [kills=5] [iterations=40] [save_interval=5] [seed=0] [out=/tmp/kill_resume]
+
+Each round waits until the run has logged a randomly chosen iteration (plus a random fraction of
+a second, so kills also land inside collection, update and checkpoint writes), kills the whole
+process group with SIGKILL, checks that every ``model_<it>.pt`` loads and that the newest is at
+most ``save_interval`` iterations behind the last logged one, then continues with
+``resume=RUN_DIR``. After the last kill the run trains to its end. Prints one line per kill and a
+JSON report; exit code 1 when a check fails.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from mjnav.schema import ConfigError, split_args
+from mjnav.train.runner import checkpoints
+
+_LINE = re.compile(r"\] it (\d+)/\d+ ")
+
+
+def _logged(log: Path) -> int:
+    """Index of the last iteration the run has logged (-1 before the first)."""
+    found = _LINE.findall(log.read_text(errors="replace")) if log.is_file() else []
+    return int(found[-1]) - 1 if found else -1
+
+
+def _start(argv: list[str], log: Path, python: str, cwd: Path) -> subprocess.Popen:
+    with open(log, "w") as stream:  # the child keeps its own descriptor
+        return subprocess.Popen([python, "scripts/train.py", *argv], cwd=cwd, stdout=stream,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _wait_for(proc: subprocess.Popen, log: Path, iteration: int, timeout: float = 600.0) -> None:
+    end = time.monotonic() + timeout
+    while _logged(log) < iteration:
+        if proc.poll() is not None:
+            raise RuntimeError(f"training exited (code {proc.returncode}) before iteration {iteration}:\n"
+                               f"{log.read_text()[-2000:]}")
+        if time.monotonic() > end:
+            raise RuntimeError(f"iteration {iteration} not reached within {timeout:.0f} s")
+        time.sleep(0.05)
+
+
+def _all_load(run_dir: Path) -> bool:
+    for path in checkpoints(run_dir):
+        state = torch.load(path, map_location="cpu", weights_only=False)
+        if "actor_state_dict" not in state:
+            return False
+    return True
+
+
+def run(kills: int, out: Path, rng: random.Random, iterations: int = 40, save_interval: int = 5,
+        python: str = sys.executable, cwd: Path | None = None) -> dict[str, Any]:
+    """Train, kill and resume ``kills`` times, then finish; returns the report (see the module docstring)."""
+    cwd = cwd or Path(__file__).resolve().parents[1]
+    out.mkdir(parents=True, exist_ok=True)
+    argv = ["task=stage1", "start=scratch", "train.num_envs=8", "train.steps_per_env=16", "train.workers=2",
+            f"train.iterations={iterations}", f"train.save_interval={save_interval}", f"out={out}"]
+    report: dict[str, Any] = {"kills": [], "finished": False}
+    log = out / "round0.log"
+    proc, run_dir = _start(argv, log, python, cwd), None
+    for k in range(kills):
+        done = _logged(log)
+        target = rng.randint(max(done + 1, 0), max(done + 1, iterations - 2 - (kills - k)))
+        _wait_for(proc, log, target)
+        time.sleep(rng.uniform(0.0, 1.0))
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        run_dir = run_dir or next(out.glob("stage1-*"))
+        logged, found = _logged(log), checkpoints(run_dir)
+        last = int(found[-1].stem.split("_")[1]) if found else -1
+        record = {"kill": k + 1, "logged_iteration": logged, "last_checkpoint": last,
+                  "lost_iterations": logged - last, "checkpoints_load": _all_load(run_dir)}
+        report["kills"].append(record)
+        print(json.dumps(record), flush=True)
+        if not found:
+            raise RuntimeError(f"no checkpoint after kill {k + 1}: {log.read_text()[-2000:]}")
+        log = out / f"round{k + 1}.log"
+        proc = _start([f"resume={run_dir}"], log, python, cwd)
+    if proc.wait() != 0:
+        raise RuntimeError(f"the last round failed:\n{log.read_text()[-2000:]}")
+    run_dir = run_dir or next(out.glob("stage1-*"))
+    report["final_checkpoint"] = checkpoints(run_dir)[-1].name
+    report["finished"] = (run_dir / "policy.pt").is_file() and _all_load(run_dir)
+    return report
+
+
+def main(argv: list[str]) -> int:
+    """Parse arguments, run, print the report; 1 if a resume failed or lost more than one interval."""
+    defaults = {"kills": 5, "iterations": 40, "save_interval": 5, "seed": 0, "out": "/tmp/kill_resume"}
+    try:
+        opts, extra = split_args(argv, defaults)
+        if extra:
+            raise ConfigError(f"unexpected task overrides {extra}")
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    interval = int(opts["save_interval"])
+    report = run(int(opts["kills"]), Path(str(opts["out"])), random.Random(int(opts["seed"])),
+                 int(opts["iterations"]), interval)
+    print(json.dumps(report, indent=1))
+    ok = report["finished"] and all(k["lost_iterations"] <= interval and k["checkpoints_load"] for k in report["kills"])
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
