@@ -120,8 +120,15 @@ def task_dir() -> Path:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    with open(path, encoding="utf-8") as f:
-        data = yaml.safe_load(f) or {}
+    """The mapping in a task YAML file; an empty, unparsable or non-mapping file is a ConfigError
+    (an empty file would otherwise silently mean "all defaults"; write ``{}`` for that)."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except (yaml.YAMLError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: not valid YAML ({str(err).splitlines()[0]})") from None
+    if data is None:
+        raise ConfigError(f"{path}: empty task file (write {{}} for the defaults)")
     if not isinstance(data, dict):
         raise ConfigError(f"{path.name}: top level must be a mapping")
     return data
@@ -129,7 +136,9 @@ def _read_yaml(path: Path) -> dict[str, Any]:
 
 def _resolve_path(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") and path.exists():
+    if path.suffix in (".yaml", ".yml"):
+        if not path.is_file():
+            raise ConfigError(f"task file {str(path)!r} does not exist")
         return path
     candidate = task_dir() / f"{name_or_path}.yaml"
     if not candidate.exists():

@@ -148,3 +148,24 @@ def test_inconsistent_values_rejected(override: str, message: str) -> None:
     """Values that would make the task silently wrong are rejected at load with the key."""
     with pytest.raises(ConfigError, match=message):
         load_task("stage6", [override])
+
+
+def test_bad_task_files_are_config_errors(tmp_path: Path) -> None:
+    """An empty, unparsable or missing task file is a ConfigError naming the file, not defaults or a YAML traceback."""
+    empty, broken = tmp_path / "empty.yaml", tmp_path / "broken.yaml"
+    empty.write_text("")
+    broken.write_text("arena: {size: [10, ")
+    with pytest.raises(ConfigError, match="empty task file"):
+        load_task(empty)
+    with pytest.raises(ConfigError, match="broken.yaml: not valid YAML"):
+        load_task(broken)
+    with pytest.raises(ConfigError, match="does not exist"):
+        load_task(tmp_path / "missing.yaml")
+
+
+def test_exponent_floats_are_numbers() -> None:
+    """``1e-4`` (a string to YAML 1.1) is accepted for float fields; other strings and nan are not."""
+    assert load_task("stage1", ["timing.control_period=1e-1"]).timing.control_period == pytest.approx(0.1)
+    for bad in ("1e-1x", "nan", "inf"):
+        with pytest.raises(ConfigError, match="finite number"):
+            load_task("stage1", [f"timing.control_period={bad}"])

@@ -178,8 +178,9 @@ def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig 
         The :class:`Region`; on failure ``success`` is False and the boundary is the fallback.
 
     Raises:
-        ValueError: On shape mismatch, fewer than ``num_points`` beams, or non-finite ranges or
-            angles (the message lists the offending beam indices).
+        ValueError: On shape mismatch, fewer than ``num_points`` beams, a non-numeric dtype, or
+            non-finite ranges or angles (the message lists the offending beam indices). Ranges
+            below 0 (sensor noise very close to a surface) or above ``max_range`` are clipped.
     """
     cfg = config if config is not None else _DEFAULT
     r, th = _validate(ranges, angles, cfg.num_points)
@@ -291,6 +292,10 @@ def _trig(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 def _validate(ranges: np.ndarray, angles: np.ndarray, num_points: int) -> tuple[np.ndarray, np.ndarray]:
+    for name, arr in (("ranges", ranges), ("angles", angles)):
+        kind = np.asarray(arr).dtype.kind
+        if kind not in "biuf":
+            raise ValueError(f"{name}: expected real numbers, got dtype {np.asarray(arr).dtype}")
     r = np.asarray(ranges, dtype=np.float64).ravel()
     th = np.asarray(angles, dtype=np.float64).ravel()
     if r.shape != th.shape:
