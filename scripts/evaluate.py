@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import sys
 
-from mjnav.eval.runner import main
+from mjnav.cli import evaluate as main
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[1:]))
