@@ -1,6 +1,6 @@
 """Stage configs: :class:`TaskConfig` and the YAML loader.
 
-A stage file (``tasks/stageN.yaml``) holds *deltas* over the defaults of
+A stage file (``mjnav/stages/stageN.yaml``) holds *deltas* over the defaults of
 :class:`TaskConfig`; it may name one parent with ``extends: stageM`` (one
 level). Unknown keys and bad values fail at load time with the key's dotted
 path and the file's name. Dotted overrides (``crowd.count=25``) use the same

@@ -46,9 +46,12 @@ _IMPORT = re.compile(r"\bmjnav(?=[./\s]|$)", re.MULTILINE)  # imports, entry poi
 
 def export_revision(ref: str, folder: Path) -> str:
     """Extract ``mjnav`` and its stage files at ``ref`` into ``folder`` as package ``mjnav_ref``."""
+    # Until 2026-12-03 the stage files lived in tasks/ (mjnav/stages was a symlink to it).
+    old_layout = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{ref}:tasks"], capture_output=True)
+    paths = ["mjnav", "tasks"] if old_layout.returncode == 0 else ["mjnav"]
     try:
         archive = subprocess.run(
-            ["git", "-C", str(ROOT), "archive", "--format=tar", ref, "mjnav", "tasks"], check=True, capture_output=True
+            ["git", "-C", str(ROOT), "archive", "--format=tar", ref, *paths], check=True, capture_output=True
         ).stdout
     except subprocess.CalledProcessError as err:
         raise ConfigError(f"ref={ref!r}: git archive failed: {err.stderr.decode().strip()}") from None
