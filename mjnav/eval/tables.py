@@ -65,7 +65,8 @@ _OURS_CROWD = {"stage5": (87.1, 2.9, 4.59, 1.57, 26475.46), "stage6": (78.1, 2.9
 TABLES: dict[int, Table] = {
     2: Table(("stage2", "stage3", "stage4"), (
         Method("Design 1", "docs/policies/stage4_design1.pt", "design1",
-               {"stage2": (76, 4.0, 11.28, 2.87), "stage3": (79.9, 4.0, 11.37, 2.9), "stage4": (80.9, 3.9, 11.25, 2.95)}),
+               {"stage2": (76, 4.0, 11.28, 2.87), "stage3": (79.9, 4.0, 11.37, 2.9),
+                "stage4": (80.9, 3.9, 11.25, 2.95)}),
         Method("Design 2", "docs/policies/stage4_design2.pt", "design2",
                {"stage2": (76, 4.0, 11.11, 2.8), "stage3": (79,), "stage4": (75.1,)}),
         Method("Design 3", "docs/policies/stage4_design3.pt", "design3",
@@ -73,7 +74,8 @@ TABLES: dict[int, Table] = {
         Method("Design 4", "docs/policies/stage4_design4.pt", "design4",
                {"stage2": (83, 5.0, 11.66, 2.23), "stage3": (83.5, 4.9, 11.59, 2.24), "stage4": (83.7,)}),
         Method("Ours", "docs/policies/{stage}_policy.pt", "ours",
-               {"stage2": (89.2, 5.5, 12.19, 2.18), "stage3": (89.1, 5.9, 13.04, 2.17), "stage4": (85.5, 5.8, 12.51, 2.1)}),
+               {"stage2": (89.2, 5.5, 12.19, 2.18), "stage3": (89.1, 5.9, 13.04, 2.17),
+                "stage4": (85.5, 5.8, 12.51, 2.1)}),
     )),
     3: Table(("stage5", "stage6", "stage7"), (
         Method("r_t1", "docs/policies/{stage}_policy.pt", "ours", _OURS_CROWD),
@@ -89,7 +91,8 @@ TABLES: dict[int, Table] = {
     ), abs_acc=True),
     4: Table(("stage5", "stage6", "stage7"), (
         Method("TEB", "teb", "teb",
-               {"stage5": (77.1, 4.4, 4.64, 1.11), "stage6": (65.2, 4.0, 4.21, 1.10), "stage7": (57.8, 3.8, 3.87, 1.07)}),
+               {"stage5": (77.1, 4.4, 4.64, 1.11), "stage6": (65.2, 4.0, 4.21, 1.10),
+                "stage7": (57.8, 3.8, 3.87, 1.07)}),
         Method("Ours", "docs/policies/{stage}_policy.pt", "ours", {k: v[:4] for k, v in _OURS_CROWD.items()}),
     )),
 }
@@ -116,7 +119,8 @@ def load_rows(path: Path) -> list[dict[str, Any]]:
 def _stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     n = len(rows)
     wins = [r for r in rows if r["outcome"] == "success"]
-    out: dict[str, Any] = {"episodes": n, "success": len(wins), "collision": sum(r["outcome"] == "collision" for r in rows)}
+    collisions = sum(r["outcome"] == "collision" for r in rows)
+    out: dict[str, Any] = {"episodes": n, "success": len(wins), "collision": collisions}
     for key, name in (("time_s", "time"), ("distance_m", "distance"), ("mean_speed", "speed")):
         out[name] = sum(r["metrics"][key] for r in wins) / len(wins) if wins else math.nan
     out["abs_acc"] = sum(r["metrics"].get("abs_acc_sum", math.nan) for r in wins)  # the paper's sum over successes
@@ -195,7 +199,8 @@ def _paper(values: tuple[float, ...]) -> str:
         return "–"
     text = f"{values[0]:g}"
     if len(values) >= 4:
-        text += f" ({values[1]:g} s, {values[2]:g} m, {values[3]:g} m/s" + (f", {values[4]:g}" if len(values) > 4 else "") + ")"
+        acc = f", {values[4]:g}" if len(values) > 4 else ""
+        text += f" ({values[1]:g} s, {values[2]:g} m, {values[3]:g} m/s{acc})"
     return text
 
 
@@ -206,7 +211,8 @@ def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False) -> str:
     extra = ["time s", "distance m", "speed m/s"] + (["Total Abs Acc"] if abs_acc else [])
     paper = "paper success % (time, distance, speed" + (", Total Abs Acc)" if abs_acc else ")")
     head = (f"| stage | method | {paper} | success %, paper's rule [95 % CI] | collision %, paper's rule "
-            f"| success %, contact rule [95 % CI] | collision %, contact rule | {' | '.join(extra)} | action | episodes |")
+            f"| success %, contact rule [95 % CI] | collision %, contact rule | {' | '.join(extra)} "
+            "| action | episodes |")
     cols = 9 + len(extra)
     lines = [head, "|" + "---|" * cols]
     keys = ("time", "distance", "speed", "abs_acc")[: len(extra)]

@@ -187,7 +187,8 @@ def _same_design(checkpoint: Path, args: RunArgs) -> bool:
     from mjnav.eval.policies import training_overrides
 
     shipped = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
-    wanted = stages.load_stage(args.task, [*training_overrides(checkpoint), *args.task_overrides])  # type: ignore[arg-type]
+    overrides = [*training_overrides(checkpoint), *args.task_overrides]
+    wanted = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
     return shipped.design == wanted.design
 
 
@@ -210,7 +211,8 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
     state = None
     if start == "curriculum":
         if not args.curriculum:  # a walk up to the requested stage
-            train = apply_overrides(train, [f"curriculum.first_stage=1", f"curriculum.last_stage={_stage_number(args.task)}"])
+            last = _stage_number(args.task)
+            train = apply_overrides(train, ["curriculum.first_stage=1", f"curriculum.last_stage={last}"])
         if not given_iterations:
             train = apply_overrides(train, [f"iterations={curriculum_iterations(train)}"])
         state = CurriculumState(stage=train.curriculum.first_stage)
@@ -219,7 +221,8 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
         if start == "shipped":
             from mjnav.eval.policies import training_overrides
 
-            init = _check_init(shipped_checkpoint(_stage_number(args.task) - 1, root))  # type: ignore[arg-type,operator]
+            previous = _stage_number(args.task) - 1  # type: ignore[operator]
+            init = _check_init(shipped_checkpoint(previous, root))  # type: ignore[arg-type]
             overrides = [*training_overrides(init), *overrides]
             if not given_iterations:
                 steps = train.num_envs * train.steps_per_env
@@ -379,7 +382,8 @@ def _start_line(plan: RunPlan) -> str:
     steps = t.iterations * t.num_envs * t.steps_per_env
     if plan.start == "shipped":
         return (f"start: the shipped policy {plan.init} (task overrides {plan.task_overrides or 'none'}), "
-                f"{plan.task.name} for {t.iterations} iterations = {steps:,} env steps; start=curriculum|scratch to change")
+                f"{plan.task.name} for {t.iterations} iterations = {steps:,} env steps; "
+                "start=curriculum|scratch to change")
     if plan.init is not None:
         return f"start: weights of {plan.init}, {plan.task.name} for {steps:,} env steps"
     return f"start: random weights, {plan.task.name} for {steps:,} env steps"
