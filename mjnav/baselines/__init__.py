@@ -8,16 +8,18 @@ same. Pure numpy/scipy; every planner brakes (and counts it in ``stats``) instea
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from mjnav.baselines.dwa import DwaConfig, DwaPlanner
 from mjnav.baselines.mpc_goal import MpcGoalPlanner
 from mjnav.baselines.random import RandomActionPolicy, RandomPlanner
 from mjnav.baselines.teb import TebConfig, TebPlanner
+from mjnav.schema import ConfigError, apply_overrides
 
 __all__ = [
     "PLANNERS",
+    "PLANNER_CONFIGS",
     "DwaConfig",
     "DwaPlanner",
     "MpcGoalPlanner",
@@ -40,12 +42,27 @@ PLANNERS: dict[str, Callable[[], Planner]] = {
 }
 
 
-def make_planner(name: str) -> Planner:
+#: Parameter dataclass of each planner that takes ``planner.<field>=value`` overrides.
+PLANNER_CONFIGS: dict[str, type] = {"dwa": DwaConfig, "teb": TebConfig}
+
+
+def make_planner(name: str, overrides: Sequence[str] = ()) -> Planner:
     """A fresh planner by name (one of :data:`PLANNERS`).
+
+    Args:
+        name: Planner name.
+        overrides: ``["w_clearance=0.8", ...]`` applied to its :data:`PLANNER_CONFIGS` dataclass
+            (unknown fields and bad values are rejected by :func:`mjnav.schema.apply_overrides`).
 
     Raises:
         KeyError: For an unknown name (the message lists the known ones).
+        ConfigError: Overrides for a planner without parameters, or a bad override.
     """
     if name not in PLANNERS:
         raise KeyError(f"unknown baseline {name!r} (known: {', '.join(sorted(PLANNERS))})")
-    return PLANNERS[name]()
+    if not overrides:
+        return PLANNERS[name]()
+    if name not in PLANNER_CONFIGS:
+        raise ConfigError(f"planner overrides {list(overrides)}: {name} has no parameters "
+                          f"(configurable: {', '.join(sorted(PLANNER_CONFIGS))})")
+    return PLANNERS[name](apply_overrides(PLANNER_CONFIGS[name](), list(overrides)))

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mjnav.baselines import PLANNERS, RandomActionPolicy, make_planner
+from mjnav.schema import ConfigError
 
 __all__ = [
     "ACTION_MODES",
@@ -97,9 +98,20 @@ class Agent:
         self._actor = actor
         self.action_size = 4  # the task's, from begin()
         self.planner = TimedPlanner(planner) if planner is not None else None
+        self.input_size: int | None = None  # observation length a learned actor takes
 
     def begin(self, task: CrowdNavTask, episode_seed: int) -> None:
-        """Install on ``task`` (a CrowdNavTask) before its reset for ``episode_seed``."""
+        """Install on ``task`` (a CrowdNavTask) before its reset for ``episode_seed``.
+
+        Raises:
+            ValueError: A learned actor whose input size is not the task's observation size
+                (trained with another ``design``, frame count or polygon resolution).
+        """
+        size = task.core.observation_size
+        if self.input_size is not None and self.input_size != size:
+            raise ValueError(f"policy {self.source!r} takes {self.input_size} observation values, task "
+                             f"{task.config.name} (design {task.config.design}) gives {size}: evaluate it with the "
+                             "task overrides it was trained with")
         task.planner = self.planner
         self.action_size = task.core.design.action_size
         if isinstance(self._actor, RandomActionPolicy):
@@ -292,7 +304,17 @@ def _load_learned(path: Path, mode: str = "mean") -> Agent:
     actor = _torch_actor(module)
     if log_std is not None:
         actor = (_SampledActor if mode == "sample" else _ExpectedActor)(actor, log_std)
-    return Agent(name, "learned", str(path), actor=actor)
+    agent = Agent(name, "learned", str(path), actor=actor)
+    agent.input_size = _input_size(module)
+    return agent
+
+
+def _input_size(module: torch.nn.Module) -> int | None:
+    """Observation length the actor takes: the input width of its first 2-D weight (None if none)."""
+    for tensor in module.state_dict().values():
+        if tensor.ndim == 2:
+            return int(tensor.shape[1])
+    return None
 
 
 def _is_checkpoint(path: Path) -> bool:
@@ -300,7 +322,8 @@ def _is_checkpoint(path: Path) -> bool:
     return re.fullmatch(r"model_\d+\.pt", path.name) is not None or path.name.endswith("_checkpoint.pt")
 
 
-def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "mean") -> Agent:
+def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "mean",
+                planner: Sequence[str] = ()) -> Agent:
     """Load a policy by ``PATH_OR_NAME`` (see the module docstring).
 
     Args:
@@ -310,6 +333,8 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "me
             the expected squashed action of the Gaussian, :class:`_ExpectedActor`) or ``sample``
             (the training Gaussian, noise seeded by the episode seed); the last two need a
             checkpoint.
+        planner: ``["w_clearance=0.8", ...]`` parameter overrides of a baseline planner
+            (:func:`mjnav.baselines.make_planner`); rejected for anything else.
 
     Returns:
         The :class:`Agent`.
@@ -317,12 +342,15 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "me
     Raises:
         FileNotFoundError: Neither a baseline nor an existing file/run.
         ValueError: The file is not a TorchScript policy or an rsl-rl checkpoint of a known actor.
+        ConfigError: Planner overrides for a policy that is not a configurable planner.
     """
     text = str(spec)
+    if planner and text not in PLANNERS:
+        raise ConfigError(f"planner overrides {list(planner)} need a baseline planner, not {text!r}")
     if text == "random":
         return Agent("random", "random", "random", actor=RandomActionPolicy())
     if text in PLANNERS:
-        return Agent(text, "planner", text, planner=make_planner(text))
+        return Agent(text, "planner", text, planner=make_planner(text, planner))
     if mode not in ACTION_MODES:
         raise ValueError(f"action: expected one of {ACTION_MODES}, got {mode!r}")
     return _load_learned(_find(text, runs_dir), mode)

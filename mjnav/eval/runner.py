@@ -9,12 +9,15 @@ their own random stream, ``default_rng([seed, 1])``, so they cannot shift the sc
 
 Each worker process builds its environment and loads the policy once, then runs episodes by
 index. Results: one JSON line per episode (``<task>.jsonl``), ``summary.csv`` and
-``summary.md`` (one row per task) in the output folder.
+``summary.md`` (one row per task) in the output folder. Episodes are appended to the JSONL as
+they finish, so an evaluation that is interrupted and started again with the same arguments runs
+only the missing episodes (never duplicates); at the end the file is rewritten sorted by index.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import multiprocessing as mp
 import os
@@ -56,6 +59,11 @@ if TYPE_CHECKING:
 
 #: First held-out episode seed (training seeds are < 2**31).
 HELD_OUT_BASE = 2**32
+#: Offset of the scenarios the baselines are tuned on (``scripts/evaluate.py seed_offset=1000000000
+#: planner.KEY=VALUE``): a billion scenarios past the evaluation sets (offset 0) and the
+#: development sets of ``docs/results.md`` (offsets 5,000,000 and 6,000,000), so no parameter is
+#: ever chosen on a scenario a results table reports.
+TUNING_SEED_OFFSET = 1_000_000_000
 #: Seed of the untimed warm-up steps of each worker (neither a training nor a held-out seed).
 WARM_UP_SEED = HELD_OUT_BASE - 1
 
@@ -83,6 +91,8 @@ class EvalSpec:
         policy_overrides: The task overrides the policy was trained with
             (:func:`mjnav.eval.policies.training_overrides`); ``overrides`` win over them.
         action: ``mean``, ``expected`` or ``sample`` (:func:`mjnav.eval.policies.load_policy`).
+        planner: Parameter overrides of a baseline planner (``["w_clearance=0.8"]``, from
+            ``planner.w_clearance=0.8`` on the command line).
     """
 
     task: str
@@ -93,6 +103,7 @@ class EvalSpec:
     workers: int = 1
     policy_overrides: tuple[str, ...] = ()
     action: str = "mean"
+    planner: tuple[str, ...] = ()
 
     @property
     def task_overrides(self) -> list[str]:
@@ -108,11 +119,14 @@ class EpisodeTrace:
         positions: (T+1, 2) robot positions.
         velocities: (T+1, 2) robot velocities.
         pedestrians: (T+1, P, 3) pedestrian circles ``[x, y, r]``.
+        plans: Per control step, what the action layer decided (``position`` planned from,
+            ``polygon``, ``q_s``, ``q_l``, ``predicted``); empty for baselines.
     """
 
     positions: np.ndarray
     velocities: np.ndarray
     pedestrians: np.ndarray
+    plans: list[dict[str, np.ndarray]] = dataclasses.field(default_factory=list)
 
 
 def git_commit(path: str | Path | None = None) -> str:
@@ -149,11 +163,12 @@ class _Recorder:
     """Collects the per-step quantities of one episode."""
 
     def __init__(self, env: NavGymEnv, agent: Agent) -> None:
-        """Snapshot the cumulative counters; call before the episode's reset."""
+        """Snapshot the cumulative counters; call before the episode's reset (``env`` unwrapped)."""
         self.env, self.agent, self.task = env, agent, env.task
         self.radius = env.task.config.robot.radius
         self.positions, self.velocities, self.peds, self.obst, self.ped = [], [], [], [], []
         self.solve: list[float] = []
+        self.plans: list[dict[str, np.ndarray]] = []
         self.counters = dict(self.task.core.counters)
         self.planner_stats = dict(getattr(getattr(agent.planner, "planner", None), "stats", {}) or {})
 
@@ -168,6 +183,8 @@ class _Recorder:
         record = self.task.core.record
         if record is not None and self.agent.planner is None:
             self.solve.append(1e3 * record.solve_time_s)
+            self.plans.append({"position": record.position.copy(), "polygon": record.polygon,
+                               "q_s": record.q_s.copy(), "q_l": record.q_l.copy(), "predicted": record.predicted})
 
     def finish(self, outcome: str) -> tuple[EpisodeMetrics, dict[str, int], EpisodeTrace]:
         core = self.task.core.counters
@@ -182,7 +199,7 @@ class _Recorder:
             fallbacks=fallbacks, region_failures=core["region_failures"] - self.counters["region_failures"],
             scans=len(self.positions),
         )
-        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds))
+        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans)
         return metrics, stats, trace
 
 
@@ -223,15 +240,17 @@ def run_episode(
     """Run one episode of scenario ``seed`` to its end.
 
     Args:
-        env: A :class:`mjnav.envs.gym_env.NavGymEnv`.
+        env: A :class:`mjnav.envs.gym_env.NavGymEnv`, possibly wrapped (``gymnasium.make`` gives a
+            wrapped one; steps go through the wrappers).
         agent: A loaded :class:`mjnav.eval.policies.Agent`.
         seed: Episode seed.
 
     Returns:
         (metrics, extras with ``planner_stats``, ``start``, ``goal``, ``trace``).
     """
-    agent.begin(env.task, seed)
-    rec = _Recorder(env, agent)
+    base = env.unwrapped  # wrappers (TimeLimit, RecordEpisodeStatistics, ...) do not forward task/physics
+    agent.begin(base.task, seed)
+    rec = _Recorder(base, agent)
     obs, _ = env.reset(options={"episode_seed": seed})
     rec.sample()
     info = {"outcome": "running"}
@@ -241,7 +260,7 @@ def run_episode(
         rec.sample()
         done = terminated or truncated
     metrics, stats, trace = rec.finish(info["outcome"])
-    layout = env.task.layout
+    layout = base.task.layout
     extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist()}
     return metrics, extras, trace
 
@@ -275,7 +294,7 @@ def _setup_worker(spec: EvalSpec) -> None:
     except ImportError:
         pass
     env = _WORKER["env"] = NavGymEnv(spec.task, overrides=spec.task_overrides or None, seed=0)
-    agent = _WORKER["agent"] = load_policy(spec.policy, mode=spec.action)
+    agent = _WORKER["agent"] = load_policy(spec.policy, mode=spec.action, planner=spec.planner)
     _WORKER["spec"] = spec
     _warm_up(env, agent)
 
@@ -299,8 +318,9 @@ def _work(index: int) -> dict[str, Any]:
     return {"index": index, "seed": seed, "outcome": metrics.outcome, "metrics": metrics.to_dict(), **extras}
 
 
-def _results(spec: EvalSpec) -> Iterator[dict[str, Any]]:
-    indices = range(spec.episodes)
+def _results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
+    if not indices:
+        return
     if spec.workers <= 1:
         _init_worker(spec)
         yield from map(_work, indices)
@@ -308,12 +328,12 @@ def _results(spec: EvalSpec) -> Iterator[dict[str, Any]]:
     from mjnav.eval.policies import load_policy
 
     try:  # a bad policy fails here, in seconds, before any worker starts
-        load_policy(spec.policy, mode=spec.action)
-    except ValueError as err:
+        load_policy(spec.policy, mode=spec.action, planner=spec.planner)
+    except (ValueError, ConfigError) as err:
         raise EvalError(str(err)) from err
     ctx = mp.get_context("spawn")
     with ctx.Pool(spec.workers, initializer=_init_worker, initargs=(spec,)) as pool:
-        chunk = max(1, min(8, spec.episodes // (4 * spec.workers)))
+        chunk = max(1, min(8, len(indices) // (4 * spec.workers)))
         yield from pool.imap_unordered(_work, indices, chunksize=chunk)
 
 
@@ -348,22 +368,99 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
 
     config = resolve_config(spec.task, spec.task_overrides or None)
     policy_name = describe(spec.policy)
-    stream = _results(spec)
-    rows = sorted(_progress(stream, spec.episodes, f"{config.name}/{policy_name}") if progress else stream,
-                  key=lambda r: r["index"])
     commit = git_commit()
     common = {"task": config.name, "task_version": config.version, "policy": policy_name,
-              "policy_source": spec.policy, "commit": commit, "overrides": spec.task_overrides,
+              "policy_source": spec.policy, "policy_sha256": _file_sha256(spec.policy), "commit": commit,
+              "overrides": spec.task_overrides,
               "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
-              "design": config.design, "action_mode": spec.action}
-    if out_dir is not None:
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        with open(out / f"{config.name}.jsonl", "w", encoding="utf-8") as f:
-            f.writelines(json.dumps({**common, **row}) + "\n" for row in rows)
+              "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
+    path = None if out_dir is None else Path(out_dir) / f"{config.name}.jsonl"
+    done = _resumable(path, common, spec) if path is not None else {}
+    todo = [i for i in range(spec.episodes) if i not in done]
+    if done and progress:
+        print(f"{path}: {len(done)} of {spec.episodes} episodes already there, running {len(todo)}",
+              file=sys.stderr, flush=True)
+    stream = _results(spec, todo)
+    if progress:
+        stream = _progress(stream, len(todo), f"{config.name}/{policy_name}")
+    rows = [*done.values(), *(stream if path is None else _append(path, common, stream))]
+    rows.sort(key=lambda r: r["index"])
+    if path is not None:
+        partial = path.with_name(path.name + ".partial")
+        partial.write_text("".join(json.dumps({**common, **_episode(r)}) + "\n" for r in rows), encoding="utf-8")
+        os.replace(partial, path)  # sorted by index, written atomically
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
     return {**summary_row(summary, config.name, policy_name), "task_version": config.version,
             "commit": commit, "seed_offset": spec.seed_offset}
+
+
+#: Fields every record of one evaluation shares (the rest is the episode's, from :func:`_work`).
+_COMMON_KEYS = ("task", "task_version", "policy", "policy_source", "policy_sha256", "commit", "overrides",
+                "policy_overrides", "collision", "design", "action_mode", "planner_overrides")
+#: Fields that must match for an interrupted evaluation to be continued rather than started over.
+_SPEC_KEYS = ("task", "task_version", "policy_source", "policy_sha256", "commit", "overrides", "action_mode",
+              "planner_overrides")
+
+
+def _append(path: Path, common: dict[str, Any], stream: Iterator[dict[str, Any]]) -> Iterator[dict[str, Any]]:
+    """Pass the episodes on, appending each to ``path`` as it finishes (a restart resumes from them).
+
+    The file is opened at the first episode, so a policy that fails to load writes nothing.
+    """
+    f = None
+    try:
+        for row in stream:
+            if f is None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                f = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed below
+            f.write(json.dumps({**common, **row}) + "\n")
+            f.flush()
+            yield row
+    finally:
+        if f is not None:
+            f.close()
+
+
+def _episode(record: dict[str, Any]) -> dict[str, Any]:
+    """The per-episode part of a JSONL record."""
+    return {k: v for k, v in record.items() if k not in _COMMON_KEYS}
+
+
+def _file_sha256(spec: str) -> str | None:
+    """First 16 hex digits of the SHA-256 of a policy file (None for baselines and run names)."""
+    path = Path(spec)
+    if not path.is_file():
+        return None
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+def _resumable(path: Path, common: dict[str, Any], spec: EvalSpec) -> dict[int, dict[str, Any]]:
+    """Episodes of an earlier, interrupted run of the same evaluation in ``path``, by index.
+
+    A record counts when its task, policy (path and file hash), code commit, overrides, action mode
+    and seed match this evaluation (uncommitted code changes are not detected: delete the file, or
+    use another ``out``, after changing code); duplicates keep the first, a truncated last line (a
+    kill mid-write) is dropped. If any record belongs to another evaluation the file is started
+    over (returns {}). The file is rewritten with the kept records so the appends that follow
+    never duplicate an index.
+    """
+    if not path.is_file():
+        return {}
+    kept: dict[int, dict[str, Any]] = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError:
+            continue  # a line cut by a kill
+        index = record.get("index")
+        same = all(record.get(k) == common[k] for k in _SPEC_KEYS)
+        if not same or not isinstance(index, int) or record.get("seed") != held_out_seed(index, spec.seed_offset):
+            path.unlink()
+            return {}
+        if index < spec.episodes:
+            kept.setdefault(index, _episode(record))
+    path.write_text("".join(json.dumps({**common, **r}) + "\n" for r in kept.values()), encoding="utf-8")
+    return kept
 
 
 def evaluate_tasks(
@@ -380,7 +477,8 @@ def evaluate_tasks(
 # ---------------------------------------------------------------------------- command line
 
 _USAGE = ("usage: evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6] "
-          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|expected|sample] [task.KEY=VALUE ...]")
+          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|expected|sample] [task.KEY=VALUE ...] "
+          "[planner.KEY=VALUE ...]")
 
 
 def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
@@ -391,12 +489,15 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     """
     args: dict[str, str] = {}
     overrides: list[str] = []
+    planner: list[str] = []
     for item in argv:
         key, sep, value = item.partition("=")
         if not sep:
             raise ValueError(f"expected key=value, got {item!r}\n{_USAGE}")
         if key.startswith("task."):
             overrides.append(f"{key[5:]}={value}")
+        elif key.startswith("planner."):
+            planner.append(f"{key[8:]}={value}")
         elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset", "action"):
             args[key] = value
         else:
@@ -416,8 +517,8 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     action = args.get("action", "mean")
     if action not in ACTION_MODES:
         raise ValueError(f"action: expected one of {ACTION_MODES}, got {action!r}")
-    specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action)
-             for t in tasks if t.strip()]
+    specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action,
+                      tuple(planner)) for t in tasks if t.strip()]
     out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
     return specs, out
 

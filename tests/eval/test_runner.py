@@ -8,17 +8,23 @@ import json
 import numpy as np
 import pytest
 
+from mjnav.baselines import dwa, teb
+from mjnav.eval import runner
+from mjnav.eval.policies import load_policy
 from mjnav.eval.runner import (
     HELD_OUT_BASE,
     EvalError,
     EvalSpec,
     _results,
+    evaluate,
     evaluate_tasks,
     held_out_seed,
     main,
     parse_args,
     run_episode,
 )
+
+from mjnav.schema import ConfigError
 
 OVERRIDES = ("timing.episode_steps=20",)
 
@@ -109,9 +115,49 @@ def test_worker_setup_failure_reaches_the_parent(tmp_path):
     """A worker whose setup fails reports the error through its first task instead of being respawned."""
     spec = EvalSpec("stage5", "mpc_goal", 2, 0, ("crowd.bogus=1",), 2)
     with pytest.raises(EvalError, match="crowd.bogus"):
-        list(_results(spec))
+        list(_results(spec, range(spec.episodes)))
 
 
 def test_bad_task_is_one_error_line(capsys):
     assert main(["task=stage9", "policy=mpc_goal", "episodes=1", "workers=1"]) == 2
     assert capsys.readouterr().err.startswith("error: unknown task 'stage9'")
+
+
+def test_interrupted_evaluation_resumes_without_duplicates(tmp_path):
+    """A JSONL cut short (with a truncated last line and a duplicate) is completed, not redone;
+    a file from another evaluation is started over."""
+    spec = EvalSpec("stage5", "mpc_goal", 4, 0, OVERRIDES, 1)
+    evaluate(spec, tmp_path, progress=False)
+    path = tmp_path / "stage5.jsonl"
+    full = path.read_text().splitlines()
+    path.write_text("\n".join([full[1], full[1], full[2][:40]]) + "\n")  # index 1 twice, index 2 cut
+    calls = []
+    original = runner._results
+    try:
+        runner._results = lambda s, todo: (calls.append(list(todo)), original(s, todo))[1]
+        evaluate(spec, tmp_path, progress=False)
+    finally:
+        runner._results = original
+    assert calls == [[0, 2, 3]]
+    records = [json.loads(x) for x in path.read_text().splitlines()]
+    assert [r["index"] for r in records] == [0, 1, 2, 3]
+    assert [r["outcome"] for r in records] == [json.loads(x)["outcome"] for x in full]
+    other = EvalSpec("stage5", "mpc_goal", 4, 0, (*OVERRIDES, "crowd.count=3"), 1)
+    evaluate(other, tmp_path, progress=False)
+    assert [json.loads(x)["overrides"][-1] for x in path.read_text().splitlines()] == ["crowd.count=3"] * 4
+
+
+def test_planner_overrides_and_tuning_scenarios(tmp_path):
+    """planner.KEY=VALUE reaches the baseline's config and the JSONL; a typo or a planner without
+    parameters is an error; the tuning scenarios lie outside every evaluation set."""
+    specs, _ = parse_args(["task=stage5", "policy=dwa", "planner.w_clearance=0.8", "episodes=1", "workers=1"])
+    assert specs[0].planner == ("w_clearance=0.8",)
+    agent = load_policy("dwa", planner=specs[0].planner)
+    assert agent.planner.planner.config.w_clearance == 0.8
+    with pytest.raises(ConfigError, match="w_clearnce"):
+        load_policy("teb", planner=("w_clearnce=1",))
+    with pytest.raises(ConfigError, match="mpc_goal has no parameters"):
+        load_policy("mpc_goal", planner=("safety=1",))
+    assert runner.held_out_seed(0, runner.TUNING_SEED_OFFSET) > runner.held_out_seed(10**8)  # eval and dev sets
+    for module in (dwa, teb):
+        assert "TUNING_SEED_OFFSET" in module.__doc__ and "777" not in module.__doc__
