@@ -22,7 +22,10 @@ Episode End:
     ``terminated`` on success (goal within 0.7 m) or collision (MuJoCo contact);
     ``truncated`` after ``timing.episode_steps`` (300) control steps.
 Arguments:
-    ``gymnasium.make("mjnav/Stage6-v1", overrides=["crowd.count=25"])``.
+    ``gymnasium.make("mjnav/Stage6-v1", overrides=["crowd.count=25"], render_mode="rgb_array",
+    render_size=(480, 480), render_camera="top", render_overlays=True)``. ``spec.max_episode_steps``
+    is the task's ``timing.episode_steps`` (overrides included); ``metadata["render_fps"]`` is
+    1 / control period; ``gymnasium.make_vec(..., vectorization_mode="sync"|"async")`` works.
 Version History:
     v1: first release. 2026-12-02, same id: a failed region is recovered (``region.on_failure``,
     default ``recover``; ``paper`` restores the first release's behaviour) and ``design`` selects
@@ -39,7 +42,9 @@ import numpy as np
 from mjnav.config import TaskConfig
 from mjnav.envs.factory import make_env, resolve_config
 
-__all__ = ["NavGymEnv", "make_gym_env"]
+__all__ = ["NavGymEnv", "make_gym_env", "make_registered"]
+
+_CAMERAS = ("top", "track")
 
 
 class NavGymEnv(gym.Env):
@@ -55,6 +60,9 @@ class NavGymEnv(gym.Env):
         render_mode: str | None = None,
         timing_info: bool = False,
         task_steps: bool = True,
+        render_size: tuple[int, int] = (480, 480),
+        render_camera: str = "top",
+        render_overlays: bool = False,
     ) -> None:
         """Build the composer environment (compiled once).
 
@@ -62,14 +70,31 @@ class NavGymEnv(gym.Env):
             task: Stage name, YAML path or :class:`TaskConfig`.
             overrides: Dotted config overrides.
             seed: Seed of the environment's random state.
-            render_mode: ``"rgb_array"`` or None.
+            render_mode: ``"rgb_array"`` (``render()`` returns a frame) or None (``render()``
+                warns and returns None).
             timing_info: Add wall-clock MPC solve times (``info["mpc"]["solve_time_ms"]``); off by
                 default so that ``info`` is a deterministic function of seed and actions.
             task_steps: Step through the task alone (``NavEnvironment.step_task``: the same
                 hooks, results and errors, without composer's observation updater and
                 ``TimeStep``, about a tenth of a step) whenever, at reset, nothing else takes
                 part in a step; False: always ``composer.Environment.step``.
+            render_size: (width, height) of ``render()`` frames, pixels (at most 640 x 480).
+            render_camera: ``top`` (the room from above) or ``track`` (following the robot).
+            render_overlays: Draw the goal, the convex region, Q^s, Q^l and the MPC prediction.
+
+        Raises:
+            ValueError: An unknown ``render_mode`` or ``render_camera``, or a bad ``render_size``.
         """
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            modes = self.metadata["render_modes"]
+            raise ValueError(f"render_mode: expected None or one of {modes}, got {render_mode!r}")
+        if render_camera not in _CAMERAS:
+            raise ValueError(f"render_camera: expected one of {_CAMERAS}, got {render_camera!r}")
+        from mjnav.eval.render import RenderConfig
+
+        self._render_config = RenderConfig(render_camera, *(int(x) for x in render_size))  # checks the size
+        self._render_overlays = bool(render_overlays)
+        self._view = None
         self._timing_info = timing_info
         self._task_steps = task_steps
         self._step_task = False  # decided at every reset
@@ -80,6 +105,7 @@ class NavGymEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self.action_space = gym.spaces.Box(-np.inf, np.inf, (self.task.core.design.action_size,), np.float32)
         self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1.0 / self.config.timing.control_period)}
 
     @property
     def physics(self):
@@ -87,12 +113,19 @@ class NavGymEnv(gym.Env):
         return self._env.physics
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start an episode; ``options={"episode_seed": k}`` selects a fixed scenario."""
+        """Start an episode; ``options={"episode_seed": k}`` selects a fixed scenario.
+
+        Raises:
+            ValueError: ``seed`` outside [0, 2**32) or ``episode_seed`` outside [0, 2**63) or not an integer.
+        """
+        _check_seed("seed", seed, 2**32)
+        episode_seed = (options or {}).get("episode_seed")
+        _check_seed("episode_seed", episode_seed, 2**63)
         super().reset(seed=seed)
         if seed is not None:
             self._env.random_state.seed(seed)
-        if options and "episode_seed" in options:
-            self.task.next_episode_seed = int(options["episode_seed"])
+        if episode_seed is not None:
+            self.task.next_episode_seed = int(episode_seed)
         timestep = self._env.reset()
         self._step_task = self._task_steps and self._env.can_step_task()
         return timestep.observation["observation"].copy(), self._info()
@@ -105,7 +138,10 @@ class NavGymEnv(gym.Env):
         """
         if self.task.layout is None or self.task.outcome.done:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
-        action = np.asarray(action, dtype=np.float32)
+        try:
+            action = np.asarray(action, dtype=np.float32)
+        except (TypeError, ValueError):
+            raise ValueError(f"action: expected {self.action_space.shape[0]} numbers, got {action!r}") from None
         if self._step_task:
             self._env.step_task(action)
             obs, reward = self.task.observation, float(self.task.get_reward(None))
@@ -133,17 +169,45 @@ class NavGymEnv(gym.Env):
             "collision_kind": self.task.contact_kind,
         }
 
-    def render(self):
-        """Top-down RGB frame (needs an off-screen GL backend)."""
-        return self._env.physics.render(height=480, width=480, camera_id=0)
+    def render(self) -> np.ndarray | None:
+        """An RGB frame (height, width, 3) uint8 of the current state with ``render_mode="rgb_array"``
+        (needs an off-screen GL backend, :func:`mjnav.eval.gl.select_gl_backend`); None otherwise."""
+        if self.render_mode is None:
+            gym.logger.warn("render() without render_mode: pass render_mode='rgb_array' to the constructor or make()")
+            return None
+        from mjnav.eval.gl import select_gl_backend
+        from mjnav.eval.render import OffscreenView, camera_ids, make_drawer
+
+        cfg = self._render_config
+        if self._view is None:
+            self._view = OffscreenView(self.physics.model.ptr, cfg.width, cfg.height, select_gl_backend())
+        draw = make_drawer(self, rays=False) if self._render_overlays and self.task.layout is not None else None
+        return self._view.render(self.physics.data.ptr, camera_ids(self, cfg.view)[0], draw)
 
     def close(self) -> None:
-        """Free the physics; closing again does nothing (Gymnasium's contract)."""
+        """Free the physics and the renderer; closing again does nothing (Gymnasium's contract)."""
         if not getattr(self, "_closed", False):
             self._closed = True
+            if getattr(self, "_view", None) is not None:
+                self._view.close()
             self._env.close()
+
+
+def _check_seed(name: str, value: Any, bound: int) -> None:
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= int(value) < bound:
+        raise ValueError(f"{name}: expected an integer in [0, {bound}), got {value!r}")
 
 
 def make_gym_env(config: TaskConfig | str, seed: int | None = None, **kwargs: Any) -> NavGymEnv:
     """Factory used by the vectorised rsl-rl adapter and scripts."""
     return NavGymEnv(config, seed=seed, **kwargs)
+
+
+def make_registered(task: str | TaskConfig = "stage6", **kwargs: Any) -> gym.Env:
+    """Entry point of the registered ids: the environment inside a ``TimeLimit`` of its own
+    ``timing.episode_steps``, so ``spec.max_episode_steps`` reports the episode length that the
+    overrides give (a fixed registration value would cut a longer episode short)."""
+    env = NavGymEnv(task, **kwargs)
+    return gym.wrappers.TimeLimit(env, env.config.timing.episode_steps)

@@ -26,7 +26,7 @@ import numpy as np
 
 from mjnav.eval.gl import select_gl_backend
 
-__all__ = ["Captioner", "OffscreenView", "RenderConfig", "render_episode"]
+__all__ = ["Captioner", "OffscreenView", "RenderConfig", "camera_ids", "make_drawer", "render_episode"]
 
 if TYPE_CHECKING:
     import mujoco
@@ -193,9 +193,10 @@ def _overlay_points(task: CrowdNavTask) -> dict[str, Any]:
 
 
 def make_drawer(env: NavGymEnv, rays: bool) -> Callable[[mujoco.MjvScene], None]:
-    """Build the ``draw(scene)`` callback that adds the current step's overlays."""
+    """Build the ``draw(scene)`` callback that adds the current step's overlays (``env`` may be wrapped)."""
     import mujoco
 
+    env = env.unwrapped  # type: ignore[assignment]
     task = env.task
     goal, tol = task.layout.goal, task.config.reward.goal_tolerance
     p = task.sim.robot_state(env.physics)[0]
@@ -226,7 +227,9 @@ def make_drawer(env: NavGymEnv, rays: bool) -> Callable[[mujoco.MjvScene], None]
 # ---------------------------------------------------------------------------- episode
 
 
-def _camera_ids(env: NavGymEnv, view: str) -> list[int]:
+def camera_ids(env: NavGymEnv, view: str) -> list[int]:
+    """MuJoCo ids of the cameras of ``view`` (``top``, ``track`` or ``both``)."""
+    env = env.unwrapped  # type: ignore[assignment]
     sim = env.task.sim
     top = int(env.physics.bind(sim.arena.top_camera).element_id)
     track = int(env.physics.bind(sim.robot.camera).element_id)
@@ -235,6 +238,7 @@ def _camera_ids(env: NavGymEnv, view: str) -> list[int]:
 
 def _frame(env: NavGymEnv, views: list[OffscreenView], cams: list[int], captioner: Captioner, rays: bool,
            outcome: str) -> np.ndarray:
+    env = env.unwrapped  # type: ignore[assignment]
     task = env.task
     draw = make_drawer(env, rays)
     image = np.hstack([v.render(env.physics.data.ptr, c, draw) for v, c in zip(views, cams)])
@@ -249,7 +253,7 @@ def render_episode(
     """Run and render one episode to an MP4 (one frame per control step, 1/t_c fps).
 
     Args:
-        env: A :class:`mjnav.envs.gym_env.NavGymEnv`.
+        env: A :class:`mjnav.envs.gym_env.NavGymEnv`, possibly wrapped (steps go through the wrappers).
         agent: A loaded :class:`mjnav.eval.policies.Agent`.
         seed: Episode seed.
         out: Output ``.mp4`` path.
@@ -266,10 +270,11 @@ def render_episode(
 
     cfg = config or RenderConfig()
     backend = select_gl_backend()
-    agent.begin(env.task, seed)
+    base = env.unwrapped
+    agent.begin(base.task, seed)
     obs, _ = env.reset(options={"episode_seed": seed})
-    cams = _camera_ids(env, cfg.view)
-    views = [OffscreenView(env.physics.model.ptr, cfg.width, cfg.height, backend) for _ in cams]
+    cams = camera_ids(env, cfg.view)
+    views = [OffscreenView(base.physics.model.ptr, cfg.width, cfg.height, backend) for _ in cams]
     captioner = Captioner(cfg.width * len(cams))
     frames, outcome, done = [], "running", False
     try:
@@ -282,7 +287,7 @@ def render_episode(
         for view in views:
             view.close()
     mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
-    fps = round(1.0 / env.task.config.timing.control_period)
+    fps = round(1.0 / base.task.config.timing.control_period)
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     mediapy.write_video(str(out), np.stack(frames), fps=fps)
     return {"path": str(out), "frames": len(frames), "outcome": outcome, "backend": backend}
