@@ -1,11 +1,16 @@
-"""Figures: one episode's paths (the paper's qualitative figure) or a run's learning curve.
+"""Figures: one episode's paths, the paper's Ours-vs-TEB and qualitative figures, learning curves.
 
     python scripts/plot.py episode task=stage6 policy=PATH_OR_NAME [seed=0] [out=episode.png]
-                           [task.KEY=VALUE ...]
+                           [plans=0.5,1.5,2.5] [task.KEY=VALUE ...]
+    python scripts/plot.py compare tasks=stage5,stage6,stage7 policies=docs/policies/{stage}_policy.pt,teb
+                           [seed=0] [out=compare.png] [task.KEY=VALUE ...]
     python scripts/plot.py curve run=runs/stage6-... [out=curve.png] [smooth=10]
 
 ``seed`` is the held-out scenario index (episode seed 2**32 + seed, as scripts/evaluate.py);
-``episode_seed=K`` gives a raw episode seed. See :mod:`mjnav.eval.plots`.
+``episode_seed=K`` gives a raw episode seed. ``plans=`` draws, at those times (s), the convex
+region and the reference trajectory of a learned policy (the paper's qualitative figure).
+``compare``: one row per task, one column per policy (``{stage}`` is filled in), every policy on
+the same scenario under the same task overrides. See :mod:`mjnav.eval.plots`.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import sys
 
 from mjnav.schema import split_args
 
-_KEYS = ("task", "policy", "seed", "episode_seed", "out", "run", "smooth")
+_KEYS = ("task", "policy", "seed", "episode_seed", "out", "run", "smooth", "plans", "tasks", "policies")
 
 
 def _parse(argv: list[str]) -> tuple[dict, list[str]]:
@@ -22,20 +27,56 @@ def _parse(argv: list[str]) -> tuple[dict, list[str]]:
     return {k: v for k, v in opts.items() if v is not None}, overrides
 
 
-def _episode(env, agent, seed: int, args: dict[str, str]) -> str:
-    from mjnav.eval.plots import plot_episode
+def _panel(env, agent, seed: int, instants: list[float] | None = None) -> tuple[dict, object]:
+    """Run one episode; the keyword arguments of :func:`mjnav.eval.plots.draw_episode` and its metrics."""
     from mjnav.eval.runner import run_episode
 
     metrics, _, trace = run_episode(env, agent, seed)
-    title = f"{env.config.name} · {agent.name} · seed {seed} · {metrics.outcome} in {metrics.time_s:.1f} s"
-    out = plot_episode(trace.positions, trace.pedestrians, env.task.layout, env.config.arena.size,
-                       args.get("out", "episode.png"), env.config.timing.control_period, title=title)
+    dt = env.config.timing.control_period
+    plans = []
+    if instants:
+        if not trace.plans:
+            raise ValueError(f"plans=: {agent.name} is a baseline; only learned policies plan with the convex region")
+        plans = [trace.plans[min(len(trace.plans) - 1, round(t / dt))] for t in instants]
+    title = f"{env.config.name} · {agent.name} · {metrics.outcome} in {metrics.time_s:.1f} s"
+    return {"positions": trace.positions, "pedestrians": trace.pedestrians, "layout": env.task.layout,
+            "arena_size": env.config.arena.size, "title": title, "plans": plans}, metrics
+
+
+def _episode(env, agent, seed: int, args: dict[str, str]) -> str:
+    from mjnav.eval.plots import plot_episode
+
+    instants = [float(t) for t in str(args["plans"]).split(",")] if "plans" in args else None
+    panel, metrics = _panel(env, agent, seed, instants)
+    panel["title"] += f" · seed {seed}"
+    out = plot_episode(out=args.get("out", "episode.png"), dt=env.config.timing.control_period, **panel)
     return f"{out}: {metrics.outcome}, {metrics.time_s:.1f} s, {metrics.distance_m:.2f} m"
+
+
+def _compare(args: dict[str, str], overrides: list[str]) -> str:
+    from mjnav.eval.plots import plot_grid
+    from mjnav.eval.runner import episode_setup
+
+    if "policies" not in args:
+        raise ValueError("compare needs policies=A,B (a {stage} in a path is filled in per task)")
+    rows, lines = [], []
+    for task in str(args.get("tasks", args.get("task", "stage6"))).split(","):
+        row = []
+        for pattern in str(args["policies"]).split(","):
+            one = {k: v for k, v in args.items() if k in ("seed", "episode_seed")}
+            env, agent, seed = episode_setup({**one, "task": task, "policy": pattern.format(stage=task)}, overrides)
+            panel, metrics = _panel(env, agent, seed)
+            row.append(panel)
+            lines.append(f"{task} {agent.name}: {metrics.outcome}, {metrics.time_s:.1f} s")
+            env.close()
+        rows.append(row)
+    out = plot_grid(rows, args.get("out", "compare.png"))
+    return "\n".join([f"{out}:", *lines])
 
 
 def main(argv: list[str]) -> int:
     """Dispatch to ``episode`` or ``curve``."""
-    if not argv or argv[0] not in ("episode", "curve"):
+    if not argv or argv[0] not in ("episode", "compare", "curve"):
         print(__doc__, file=sys.stderr)
         return 2
     try:
@@ -43,6 +84,13 @@ def main(argv: list[str]) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    if argv[0] == "compare":
+        try:
+            print(_compare(args, overrides))
+        except (ValueError, FileNotFoundError) as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+        return 0
     if argv[0] == "episode":
         from mjnav.eval.runner import episode_setup
 
@@ -51,7 +99,11 @@ def main(argv: list[str]) -> int:
         except (ValueError, FileNotFoundError) as err:
             print(f"error: {err}", file=sys.stderr)
             return 2
-        print(_episode(*loaded, args))
+        try:
+            print(_episode(*loaded, args))
+        except ValueError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
         return 0
     from mjnav.eval.plots import plot_learning_curve
 

@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Circle, Polygon, Rectangle
 
-__all__ = ["load_scalars", "plot_episode", "plot_learning_curve"]
+__all__ = ["draw_episode", "load_scalars", "plot_episode", "plot_grid", "plot_learning_curve"]
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -41,6 +41,56 @@ def _time_labels(
             ax.plot(*path[k], ".", color=color, ms=3)
 
 
+def draw_episode(
+    ax: Axes,
+    positions: np.ndarray,
+    pedestrians: np.ndarray,
+    layout: Layout,
+    arena_size: Sequence[float],
+    dt: float = 0.1,
+    label_every: float = 1.0,
+    title: str = "",
+    robot_radius: float = 0.225,
+    plans: Sequence[dict[str, np.ndarray]] = (),
+) -> None:
+    """Draw one episode into ``ax`` (see :func:`plot_episode`); ``plans`` adds, per instant, the
+    convex region (black dashed) and the reference trajectory robot -> Q_s -> Q_l (green dashed)."""
+    hx, hy = 0.5 * float(arena_size[0]), 0.5 * float(arena_size[1])
+    ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, fill=False, lw=2, ec="black"))
+    for poly in layout.obstacle_polygons:
+        ax.add_patch(Polygon(np.asarray(poly), closed=True, fc="0.6", ec="0.3"))
+    peds = np.asarray(pedestrians, dtype=float).reshape(len(pedestrians), -1, 3)
+    for i in range(peds.shape[1]):
+        track = peds[:, i, :2]
+        ax.plot(track[:, 0], track[:, 1], "-", color="red", lw=1)
+        last = peds[-1, i]
+        if np.all(np.isfinite(last)):
+            ax.add_patch(Circle(last[:2], last[2], fc="none", ec="red", lw=0.8))
+        if not plans:
+            _time_labels(ax, track, dt, label_every, "black", (0, 6))
+    p = np.asarray(positions, dtype=float)
+    for k, plan in enumerate(plans):
+        ax.add_patch(Polygon(plan["polygon"], closed=True, fill=False, ls="--", lw=0.9, ec="black",
+                             label="convex region" if k == 0 else None))
+        ref = np.vstack([plan["position"], plan["q_s"], plan["q_l"]])
+        ax.plot(ref[:, 0], ref[:, 1], "--", color="green", lw=1.2, label="reference (Q_s, Q_l)" if k == 0 else None)
+        ax.plot(*plan["q_s"], "o", color="orange", ms=3)
+        ax.plot(*plan["q_l"], "o", color="green", ms=3)
+    ax.plot(p[:, 0], p[:, 1], "-", color="darkblue", lw=2, label="robot")
+    if not plans:
+        _time_labels(ax, p, dt, label_every, "c", (0, -8))
+    ax.add_patch(Circle(p[-1], robot_radius, fc="none", ec="darkblue", lw=1.2))
+    ax.plot(*layout.start, "o", color="royalblue", ms=8, label="start")
+    ax.plot(*layout.goal, "*", color="green", ms=16, label="goal")
+    ax.set_xlim(-hx - 0.3, hx + 0.3)
+    ax.set_ylim(-hy - 0.3, hy + 0.3)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="upper right", fontsize=6)
+
+
 def plot_episode(
     positions: np.ndarray,
     pedestrians: np.ndarray,
@@ -51,6 +101,7 @@ def plot_episode(
     label_every: float = 1.0,
     title: str = "",
     robot_radius: float = 0.225,
+    plans: Sequence[dict[str, np.ndarray]] = (),
 ) -> Path:
     """Write the qualitative figure of one episode as PNG.
 
@@ -64,36 +115,33 @@ def plot_episode(
         label_every: Spacing of the time labels, seconds.
         title: Figure title.
         robot_radius: Drawn robot radius at the end, metres.
+        plans: Planning snapshots (world frame: ``position``, ``polygon``, ``q_s``, ``q_l``), drawn
+            as the paper's qualitative figure (time labels are then left out).
 
     Returns:
         The written path.
     """
     hx, hy = 0.5 * float(arena_size[0]), 0.5 * float(arena_size[1])
     fig, ax = plt.subplots(figsize=(6, 6 * hy / hx if hx else 6), dpi=120)
-    ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, fill=False, lw=2, ec="black"))
-    for poly in layout.obstacle_polygons:
-        ax.add_patch(Polygon(np.asarray(poly), closed=True, fc="0.6", ec="0.3"))
-    peds = np.asarray(pedestrians, dtype=float).reshape(len(pedestrians), -1, 3)
-    for i in range(peds.shape[1]):
-        track = peds[:, i, :2]
-        ax.plot(track[:, 0], track[:, 1], "-", color="red", lw=1)
-        last = peds[-1, i]
-        if np.all(np.isfinite(last)):
-            ax.add_patch(Circle(last[:2], last[2], fc="none", ec="red", lw=0.8))
-        _time_labels(ax, track, dt, label_every, "black", (0, 6))
-    p = np.asarray(positions, dtype=float)
-    ax.plot(p[:, 0], p[:, 1], "-", color="darkblue", lw=2, label="robot")
-    _time_labels(ax, p, dt, label_every, "c", (0, -8))
-    ax.add_patch(Circle(p[-1], robot_radius, fc="none", ec="darkblue", lw=1.2))
-    ax.plot(*layout.start, "o", color="royalblue", ms=8, label="start")
-    ax.plot(*layout.goal, "*", color="green", ms=16, label="goal")
-    ax.set_xlim(-hx - 0.3, hx + 0.3)
-    ax.set_ylim(-hy - 0.3, hy + 0.3)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(title, fontsize=9)
-    ax.legend(loc="upper right", fontsize=7)
+    draw_episode(ax, positions, pedestrians, layout, arena_size, dt, label_every, title, robot_radius, plans)
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out)
+    plt.close(fig)
+    return Path(out)
+
+
+def plot_grid(panels: Sequence[Sequence[dict]], out: str | Path, dt: float = 0.1) -> Path:
+    """Several episodes side by side (the paper's Ours-vs-TEB figure: one row per scenario, one
+    column per method). Each panel holds the keyword arguments of :func:`draw_episode` except ``ax``."""
+    rows, cols = len(panels), max(len(r) for r in panels)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 4.6 * rows), dpi=110, squeeze=False)
+    for r, row in enumerate(panels):
+        for c in range(cols):
+            if c < len(row):
+                draw_episode(axes[r][c], dt=dt, **row[c])
+            else:
+                axes[r][c].axis("off")
     fig.tight_layout()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)

@@ -125,6 +125,11 @@ class StepRecord:
         return self._origin + self._relative[0]
 
     @property
+    def position(self) -> np.ndarray:
+        """(2,) robot position the plan was made at, world frame, metres."""
+        return self._origin
+
+    @property
     def predicted(self) -> np.ndarray:
         """(N, 2) world frame, metres."""
         return self._origin + self._relative[1]

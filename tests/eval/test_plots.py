@@ -6,23 +6,39 @@ import types
 
 import numpy as np
 
-from mjnav.eval.plots import load_scalars, plot_episode, plot_learning_curve
+from mjnav.eval.plots import load_scalars, plot_episode, plot_grid, plot_learning_curve
 
 
 def _is_png(path) -> bool:
     return path.exists() and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_episode_figure(tmp_path):
-    """A synthetic episode (robot, two pedestrians, one obstacle) gives a PNG."""
+def _synthetic():
     t = np.linspace(0.0, 3.0, 31)
     robot = np.column_stack([-3 + 2 * t, np.zeros_like(t)])
     peds = np.stack([np.column_stack([np.zeros_like(t), -2 + 0.5 * t, np.full_like(t, 0.3)]),
                      np.column_stack([2 - 0.4 * t, np.full_like(t, 2.0), np.full_like(t, 0.2)])], axis=1)
     layout = types.SimpleNamespace(start=np.array([-3.0, 0.0]), goal=np.array([3.0, 0.0]),
                                    obstacle_polygons=(np.array([[1.0, -3.0], [2.0, -3.0], [1.5, -2.0]]),))
+    return robot, peds, layout
+
+
+def test_episode_figure(tmp_path):
+    """A synthetic episode (robot, two pedestrians, one obstacle) gives a PNG."""
+    robot, peds, layout = _synthetic()
     out = plot_episode(robot, peds, layout, (10.0, 10.0), tmp_path / "ep.png", title="synthetic")
     assert _is_png(out)
+
+
+def test_qualitative_and_comparison_figures(tmp_path):
+    """Planning snapshots (region, Q_s, Q_l) and a 2 x 2 grid of episodes give PNGs."""
+    robot, peds, layout = _synthetic()
+    square = np.array([[-1.0, 1.0], [1.0, 1.0], [1.0, -1.0], [-1.0, -1.0]])
+    plans = [{"position": robot[k], "polygon": robot[k] + square, "q_s": robot[k] + [0.3, 0.0],
+              "q_l": robot[k] + [0.9, 0.1]} for k in (5, 15)]
+    assert _is_png(plot_episode(robot, peds, layout, (10.0, 10.0), tmp_path / "plans.png", plans=plans))
+    panel = {"positions": robot, "pedestrians": peds, "layout": layout, "arena_size": (10.0, 10.0)}
+    assert _is_png(plot_grid([[panel, {**panel, "plans": plans}], [panel]], tmp_path / "grid.png"))
 
 
 def test_learning_curve_from_events(tmp_path):
