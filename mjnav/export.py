@@ -110,8 +110,18 @@ def export_world(config: TaskConfig, seed: int, out_dir: str | Path, steps: int 
 
     Returns:
         Path of ``scene.xml``.
+
+    Raises:
+        ValueError: ``seed`` outside [0, 2**63) or ``steps`` < 1.
+        FileExistsError: ``out_dir`` is an existing file.
     """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= int(seed) < 2**63:
+        raise ValueError(f"seed: expected an integer in [0, 2**63), got {seed!r}")
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
+        raise ValueError(f"steps: expected an integer >= 1, got {steps!r}")
     out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"out: {str(out)!r} is a file, not a folder")
     out.mkdir(parents=True, exist_ok=True)
     sim = NavSim(config)
     physics = sim.make_physics()
