@@ -12,7 +12,8 @@ Arguments are ``key=value`` (values parsed as YAML)::
                            cap is every stage's whole budget (:func:`curriculum_iterations`)
     start=auto             where a new run on stage K starts (:func:`resolve_start`): ``shipped``
                            (init from ``docs/policies/stage<K-1>_checkpoint.pt`` with the task
-                           overrides it was trained with, one stage budget), ``curriculum`` (walk
+                           overrides and the PPO config, budget included, it was trained with),
+                           ``curriculum`` (walk
                            stage 1 -> K), ``scratch`` (random weights, stage K only); ``auto``
                            (default) is ``shipped`` where that file exists, else ``curriculum``
                            for K >= 2, else ``scratch``; init=/resume=/curriculum=true win
@@ -224,13 +225,31 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
             previous = _stage_number(args.task) - 1  # type: ignore[operator]
             init = _check_init(shipped_checkpoint(previous, root))  # type: ignore[arg-type]
             overrides = [*training_overrides(init), *overrides]
-            if not given_iterations:
+            recipe = _shipped_recipe(init, args.train_overrides)
+            if recipe is not None:
+                train = recipe
+            elif not given_iterations:  # one stage budget
                 steps = train.num_envs * train.steps_per_env
                 train = apply_overrides(train, [f"iterations={math.ceil(train.curriculum.stage_steps / steps)}"])
         task = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
         label = task.name
     run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
     return RunPlan(run_dir, task, train, overrides, state, init=init, start=start)
+
+
+def _shipped_recipe(checkpoint: Path, train_overrides: Sequence[str]) -> TrainConfig | None:
+    """The PPO config the shipped checkpoint was trained with (its ``NAME_config.yaml``: learning
+    rate schedule, batch, iterations, ...), then the command's ``train.*`` overrides; None without
+    that file."""
+    from mjnav.eval.policies import policy_config
+
+    path = policy_config(checkpoint)
+    if path is None:
+        return None
+    saved = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    if not isinstance(saved.get("train"), dict):
+        return None
+    return load_train(list(train_overrides), base=from_dict(TrainConfig, saved["train"]))
 
 
 def _check_init(path: Path) -> Path:

@@ -356,8 +356,13 @@ def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curric
     plan = session.plan_run(session.parse_args(["task=stage6", "task.crowd.count=12"]), root=tmp_path)
     assert plan.start == "shipped" and plan.init == tmp_path / "stage5_checkpoint.pt"
     assert plan.task.collision == "scan" and plan.task.crowd.count == 12  # the command's overrides win
-    assert plan.train.iterations == -(-plan.train.curriculum.stage_steps // (plan.train.num_envs * plan.train.steps_per_env))
+    budget = plan.train.curriculum.stage_steps / (plan.train.num_envs * plan.train.steps_per_env)
+    assert plan.train.iterations == math.ceil(budget)  # no recipe in the config: one stage budget
     assert "shipped policy" in session._start_line(plan)
+    (tmp_path / "stage5_config.yaml").write_text(
+        "run:\n  task_overrides: [collision=scan]\ntrain:\n  iterations: 120\n  schedule: fixed\n")
+    recipe = session.plan_run(session.parse_args(["task=stage6", "train.iterations=7"]), root=tmp_path)
+    assert recipe.train.schedule == "fixed" and recipe.train.iterations == 7  # its recipe, then the command's
     walk = session.plan_run(session.parse_args(["task=stage6"]), root=tmp_path / "none")
     assert walk.start == "curriculum" and walk.task.name == "stage1"
     assert (walk.train.curriculum.first_stage, walk.train.curriculum.last_stage) == (1, 6)
