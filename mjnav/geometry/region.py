@@ -79,6 +79,10 @@ class RegionConfig:
 
     Attributes:
         inflation: Safety inflation R_inf subtracted from every range, metres.
+        margin: Extra clearance kept beyond ``inflation`` while it can be, metres (not in the paper;
+            0 gives the paper's region): the region is first computed at ``inflation + margin``
+            and, where that fails, at ``inflation`` as a normal success, before any failure or
+            recovery. The collision rule, observation and rewards keep R_inf = ``inflation``.
         flip_radius: Spherical-flip radius R, metres (must exceed ``max_range``).
         num_points: Resampled boundary points rnum_v.
         max_vertices: Thinning threshold on the polygon's vertex count.
@@ -96,6 +100,7 @@ class RegionConfig:
     """
 
     inflation: float = 0.325
+    margin: float = 0.0
     flip_radius: float = 15.0
     num_points: int = 60
     max_vertices: int = 61
@@ -113,6 +118,10 @@ class RegionConfig:
             math.isfinite(self.inflation) and self.inflation >= 0.0, "inflation", "must be finite and >= 0"
         )
         _check(math.isfinite(self.max_range) and self.max_range > 0.0, "max_range", "must be finite and > 0")
+        _check(
+            math.isfinite(self.margin) and 0.0 <= self.margin and self.inflation + self.margin < self.max_range,
+            "margin", "must be finite, >= 0 and leave inflation + margin below max_range",
+        )  # fmt: skip
         _check(
             math.isfinite(self.flip_radius) and self.flip_radius > self.max_range,
             "flip_radius",
@@ -224,14 +233,20 @@ def _region(
     r: np.ndarray, th: np.ndarray, cos: np.ndarray, sin: np.ndarray, ordered: bool, cfg: RegionConfig
 ) -> Region:
     """The GALAXY pipeline on checked ranges and angles with their trigonometry."""
+    inflation = cfg.inflation + cfg.margin
     status, verts, normals, offsets, polar, xy = _galaxy_scan(
-        r, cos, sin, cfg.max_range, cfg.inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points,
-        ordered,
+        r, cos, sin, cfg.max_range, inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points, ordered
     )  # fmt: skip
+    if status != 0 and cfg.margin > 0.0:  # the margin cannot be kept: the paper's region
+        inflation = cfg.inflation
+        status, verts, normals, offsets, polar, xy = _galaxy_scan(
+            r, cos, sin, cfg.max_range, inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points,
+            ordered,
+        )  # fmt: skip
     if status != 0:
         failed = _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, STATUS_NAMES[status])
         return _recover(r, cos, sin, ordered, cfg, failed) if cfg.on_failure == "recover" else failed
-    return Region(verts, normals, offsets, polar, xy, True, "ok", False, cfg.inflation)
+    return Region(verts, normals, offsets, polar, xy, True, "ok", False, inflation)
 
 
 def _recover(r: np.ndarray, cos: np.ndarray, sin: np.ndarray, ordered: bool, cfg: RegionConfig,

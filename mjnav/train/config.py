@@ -121,6 +121,9 @@ class TrainConfig:
         epochs: Passes over each rollout.
         minibatches: Minibatches per pass.
         value_loss_coef: Value loss weight.
+        value_clip: Clip each value prediction to within ``clip`` of its rollout value in the value
+            loss (rsl-rl's default). The clip is absolute, so with returns of order 100 (success
+            +140) one update can move a value estimate by at most ``clip``.
         max_grad_norm: Gradient norm clip.
         optimizer: ``adamw`` (authors) or ``adam``.
         schedule: ``fixed`` (authors) or rsl-rl's KL-``adaptive`` learning rate.
@@ -153,6 +156,7 @@ class TrainConfig:
     epochs: int = 5
     minibatches: int = 4
     value_loss_coef: float = 1.0
+    value_clip: bool = True
     max_grad_norm: float = 1.0
     optimizer: Literal["adamw", "adam"] = "adamw"
     schedule: Literal["fixed", "adaptive"] = "adaptive"

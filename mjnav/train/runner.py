@@ -134,7 +134,7 @@ def rsl_config(train: TrainConfig, label: str = "") -> dict[str, Any]:
             "learning_rate": train.learning_rate,
             "max_grad_norm": train.max_grad_norm,
             "optimizer": train.optimizer,
-            "use_clipped_value_loss": True,
+            "use_clipped_value_loss": train.value_clip,
             "schedule": train.schedule,
             "desired_kl": train.desired_kl,
         },

@@ -315,3 +315,25 @@ def test_region_config_rejects_unknown_failure_mode():
     """A bad ``on_failure`` names the field."""
     with pytest.raises(ValueError, match="on_failure"):
         RegionConfig(on_failure="ignore")
+
+
+def test_margin_keeps_extra_clearance_and_falls_back_to_the_paper_region():
+    """With a margin the polygon keeps ``inflation + margin`` from every return while it can, and
+    where it cannot (a return between the two) it is the paper's region, reported as a success."""
+    margin = RegionConfig(margin=0.1)
+    ranges = np.full(360, 10.0)
+    ranges[45] = 1.0
+    region = compute_region(ranges, ANGLES, margin)
+    assert region.success and math.isclose(region.inflation, 0.425)
+    point = 0.575 * np.array([math.cos(ANGLES[45]), math.sin(ANGLES[45])])  # shrunk by R_inf + margin
+    assert np.max(region.normals @ point - region.offsets) > -1e-5
+    assert np.allclose(np.linalg.norm(compute_region(np.full(360, 10.0), ANGLES, margin).vertices, axis=1),
+                       10.0 - 0.425, atol=1e-5)
+    ranges[45] = 0.4  # inside the margin, outside R_inf
+    paper = compute_region(ranges, ANGLES, margin)
+    assert paper.success and math.isclose(paper.inflation, CFG.inflation)
+    assert np.allclose(paper.vertices, compute_region(ranges, ANGLES).vertices)
+    ranges[45] = 0.3  # inside R_inf: the failure is the one without a margin
+    assert compute_region(ranges, ANGLES, margin).status == compute_region(ranges, ANGLES).status == "touching"
+    with pytest.raises(ValueError, match="margin"):
+        RegionConfig(margin=-0.1)

@@ -28,6 +28,7 @@ from mjnav.train.runner import (
     learn,
     load_checkpoint,
     request_stop,
+    rsl_config,
     save_checkpoint,
 )
 
@@ -380,3 +381,10 @@ def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curric
     assert design.start == "curriculum"  # the shipped network does not fit design 1's observation
     with pytest.raises(ConfigError, match="another task.design"):
         session.plan_run(session.parse_args(["task=stage6", "task.design=design1", "start=shipped"]), root=tmp_path)
+
+
+def test_value_clip_is_configurable() -> None:
+    """``train.value_clip`` reaches rsl-rl's PPO (on by default, as rsl-rl)."""
+    assert rsl_config(TrainConfig())["algorithm"]["use_clipped_value_loss"] is True
+    assert rsl_config(TrainConfig(value_clip=False))["algorithm"]["use_clipped_value_loss"] is False
+    assert load_train(["value_clip=false"]).value_clip is False
