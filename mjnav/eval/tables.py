@@ -158,8 +158,10 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                 path = evaluation_path(out, method, stage, rule, mode)
                 found = load_rows(path)
                 if not _matches(found, episodes, seed_offset, policy, mode):
-                    if not run_missing:
-                        row[rule] = None
+                    if not run_missing:  # an unfinished run (resumable) shows as what it has so far
+                        partial = _prefix(load_rows(path.parent / f"{stage}.jsonl"), rule, seed_offset, policy, mode)
+                        # its Total Abs Acc, a sum, is not comparable
+                        row[rule] = {**_stats(partial), "abs_acc": math.nan, "of": episodes} if partial else None
                         continue
                     spec = EvalSpec(stage, policy, episodes, seed_offset, (f"collision={rule}",), workers,
                                     training_overrides(policy), mode)
@@ -185,6 +187,15 @@ def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, p
     first = found[0]
     return (first.get("policy_source") == policy and first.get("action_mode", "mean") == action
             and first.get("seed") == 2**32 + seed_offset + first.get("index", 0))
+
+
+def _prefix(found: Sequence[dict[str, Any]], rule: str, seed_offset: int, policy: str, action: str
+            ) -> list[dict[str, Any]]:
+    """The records of an unfinished evaluation under ``rule`` that form episodes 0 .. n-1 ([] otherwise)."""
+    rows = sorted(found, key=lambda r: r.get("index", -1))
+    if not rows or any(r.get("index") != i or r.get("collision") != rule for i, r in enumerate(rows)):
+        return []
+    return rows if _matches(rows, len(rows), seed_offset, policy, action) else []
 
 
 def _pct(stats: dict[str, Any] | None) -> str:
@@ -225,8 +236,18 @@ def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False) -> str:
         metric = [_number(scan.get(k), 1 if k == "abs_acc" else 2) for k in keys]
         lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {_pct(scan)} "
                      f"| {_collisions(scan)} | {_pct(row.get('contact'))} | {_collisions(row.get('contact'))} "
-                     f"| {' | '.join(metric)} | {row.get('mode', 'mean')} | {scan.get('episodes', '–')} |")
+                     f"| {' | '.join(metric)} | {row.get('mode', 'mean')} | {_episodes(row)} |")
     return "\n".join(lines) + "\n"
+
+
+def _episodes(row: dict[str, Any]) -> str:
+    """Episodes per rule; an unfinished evaluation as "n of N"."""
+    counts = []
+    for rule in RULES:
+        stats = row.get(rule)
+        if stats:
+            counts.append(f"{stats['episodes']} of {stats['of']}" if "of" in stats else str(stats["episodes"]))
+    return " / ".join(dict.fromkeys(counts)) or "–"
 
 
 def _number(value: float | None, digits: int) -> str:

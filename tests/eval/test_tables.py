@@ -72,3 +72,22 @@ def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypa
     text = tables.format_table(three, abs_acc=True)
     assert "Total Abs Acc" in text and "| 40.0 |" in text and "87.1 (2.9 s, 4.59 m, 1.57 m/s, 26475.5)" in text
     assert all(line.count("|") == text.splitlines()[0].count("|") for line in text.splitlines())
+
+
+def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> None:
+    """With run=false the runner's unfinished JSONL (episodes 0..n-1 of the rule) is shown as "n of N";
+    a file of the other rule, or with a gap, is not."""
+    folder = tmp_path / "teb"
+    folder.mkdir()
+    lines = [{"policy_source": "teb", "index": i, "seed": 2**32 + i, "collision": "scan", "action_mode": "mean",
+              "outcome": "success" if i % 2 else "collision",
+              "metrics": {"time_s": 4.0, "distance_m": 4.0, "mean_speed": 1.0, "abs_acc_sum": 5.0}} for i in range(6)]
+    (folder / "stage6.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines))
+    rows = tables.table_rows(4, tmp_path, episodes=1000, run_missing=False)
+    teb = next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")
+    assert teb["scan"]["episodes"] == 6 and teb["scan"]["success"] == 3 and teb["contact"] is None
+    line = next(x for x in tables.format_table(rows).splitlines() if "| stage6 | TEB |" in x)
+    assert "| 6 of 1000 |" in line and "50.0 [" in line
+    (folder / "stage6.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines[:2] + lines[3:]))
+    rows = tables.table_rows(4, tmp_path, episodes=1000, run_missing=False)
+    assert next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")["scan"] is None
