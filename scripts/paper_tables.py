@@ -4,7 +4,7 @@
                                    [seed_offset=0] [run=true] [action=mean|expected|sample]
 
 Reads ``<out>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
-(``run=false``: report them as missing instead) and prints the table in markdown.
+(``run=false``: report them as missing, or an unfinished one as "n of N" episodes so far) and prints the table in markdown.
 """
 
 from __future__ import annotations

@@ -137,7 +137,8 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     """One row per (stage, method): our numbers under both rules and the paper's.
 
     Evaluations missing from ``out`` (or made with other episodes, seeds, policy or action mode)
-    are run when ``run_missing`` is set; otherwise that rule's entry is None (shown as "–").
+    are run when ``run_missing`` is set; otherwise that rule's entry holds what an unfinished run of it
+    has so far (episodes 0 .. n-1, shown as "n of N") or None (shown as "–").
     Baselines (``teb``) have no action mode and always act as themselves.
     """
     from mjnav.eval.policies import BASELINES, training_overrides
@@ -159,7 +160,8 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                 found = load_rows(path)
                 if not _matches(found, episodes, seed_offset, policy, mode):
                     if not run_missing:  # an unfinished run (resumable) shows as what it has so far
-                        partial = _prefix(load_rows(path.parent / f"{stage}.jsonl"), rule, seed_offset, policy, mode)
+                        partial = _prefix(load_rows(path.parent / f"{stage}.jsonl"), rule, seed_offset, policy, mode,
+                                          episodes)
                         # its Total Abs Acc, a sum, is not comparable
                         row[rule] = {**_stats(partial), "abs_acc": math.nan, "of": episodes} if partial else None
                         continue
@@ -189,13 +191,18 @@ def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, p
             and first.get("seed") == 2**32 + seed_offset + first.get("index", 0))
 
 
-def _prefix(found: Sequence[dict[str, Any]], rule: str, seed_offset: int, policy: str, action: str
-            ) -> list[dict[str, Any]]:
-    """The records of an unfinished evaluation under ``rule`` that form episodes 0 .. n-1 ([] otherwise)."""
-    rows = sorted(found, key=lambda r: r.get("index", -1))
-    if not rows or any(r.get("index") != i or r.get("collision") != rule for i, r in enumerate(rows)):
-        return []
-    return rows if _matches(rows, len(rows), seed_offset, policy, action) else []
+def _prefix(found: Sequence[dict[str, Any]], rule: str, seed_offset: int, policy: str, action: str,
+            episodes: int) -> list[dict[str, Any]]:
+    """Episodes 0 .. n-1 of an unfinished evaluation under ``rule``, up to its first gap ([] if none).
+
+    Workers finish chunks out of order, so a stopped run can hold later episodes past a gap; they
+    are left out (keeping them would favour the episodes that finish fast).
+    """
+    by_index = {r.get("index"): r for r in found if r.get("collision") == rule}
+    rows: list[dict[str, Any]] = []
+    while len(rows) < episodes and len(rows) in by_index:
+        rows.append(by_index[len(rows)])
+    return rows if rows and _matches(rows, len(rows), seed_offset, policy, action) else []
 
 
 def _pct(stats: dict[str, Any] | None) -> str:

@@ -82,7 +82,8 @@ class RegionConfig:
         margin: Extra clearance kept beyond ``inflation`` while it can be, metres (not in the paper;
             0 gives the paper's region): the region is first computed at ``inflation + margin``
             and, where that fails, at ``inflation`` as a normal success, before any failure or
-            recovery. The collision rule, observation and rewards keep R_inf = ``inflation``.
+            recovery. The collision rule and rewards keep R_inf = ``inflation``; the observation
+            adds R_inf back to the boundary, so with a margin the policy sees the tighter polygon.
         flip_radius: Spherical-flip radius R, metres (must exceed ``max_range``).
         num_points: Resampled boundary points rnum_v.
         max_vertices: Thinning threshold on the polygon's vertex count.
@@ -148,7 +149,8 @@ class Region:
         boundary: ``(num_points, 2)`` boundary points as (r [m], θ [rad] in [0, 2π)), CCW with θ
             ascending; on failure the fallback beams' shrunk points.
         boundary_xy: The same points in Cartesian coordinates.
-        success: Whether the region was computed at the configured inflation (spec's flag).
+        success: Whether the region was computed at the configured inflation, or at inflation +
+            margin (spec's flag).
         status: One of :data:`STATUS_NAMES` (the first attempt's, also when recovered).
         recovered: The first attempt failed and the polygon comes from the recovery ladder.
         inflation: The inflation the polygon was computed with, metres (NaN without a polygon).

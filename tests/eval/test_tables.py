@@ -75,8 +75,8 @@ def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypa
 
 
 def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> None:
-    """With run=false the runner's unfinished JSONL (episodes 0..n-1 of the rule) is shown as "n of N";
-    a file of the other rule, or with a gap, is not."""
+    """With run=false the runner's unfinished JSONL is shown as "n of N" up to its first gap; a file
+    of the other rule is not."""
     folder = tmp_path / "teb"
     folder.mkdir()
     lines = [{"policy_source": "teb", "index": i, "seed": 2**32 + i, "collision": "scan", "action_mode": "mean",
@@ -88,6 +88,9 @@ def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> N
     assert teb["scan"]["episodes"] == 6 and teb["scan"]["success"] == 3 and teb["contact"] is None
     line = next(x for x in tables.format_table(rows).splitlines() if "| stage6 | TEB |" in x)
     assert "| 6 of 1000 |" in line and "50.0 [" in line
-    (folder / "stage6.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines[:2] + lines[3:]))
+    (folder / "stage6.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines[3:] + lines[:2]))
     rows = tables.table_rows(4, tmp_path, episodes=1000, run_missing=False)
-    assert next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")["scan"] is None
+    assert next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")["scan"]["episodes"] == 2  # up to the gap
+    (folder / "stage6.jsonl").write_text("".join(json.dumps({**x, "collision": "contact"}) + "\n" for x in lines))
+    rows = tables.table_rows(4, tmp_path, episodes=1000, run_missing=False)
+    assert next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")["scan"] is None  # other rule
