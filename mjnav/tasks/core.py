@@ -160,7 +160,8 @@ class NavCore:
         self._mpc = GuardedMpc(config.mpc, config.region, self.design.polygon_constraint)
         self._columns = np.array(self.design.state_columns)
         self._limits = Limits.from_task(config)
-        self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points, self.design.state_size)
+        self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points, self.design.state_size,
+                                         config.observation.frame_stride)
         self._reward_terms = reward_lib.weighted_terms(config.reward)
         self.counters = {"region_failures": 0, "region_recoveries": 0, "escapes": 0, "fallbacks": 0, "steps": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds

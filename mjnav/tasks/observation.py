@@ -156,25 +156,39 @@ class FrameStack:
     """Keeps the last ``frames`` polygon and state blocks and lays them out as spec §6.
 
     The blocks live in the float32 observation itself (polygon slots, then state slots), so a
-    push shifts two slices and writes the new frame: no per-step concatenation or cast.
+    push shifts two slices and writes the new frame: no per-step concatenation or cast. With
+    ``stride`` > 1 the stacked frames are ``stride`` pushes apart (the newest always last), taken
+    from a history of the last ``(frames - 1) * stride + 1`` frames.
     """
 
-    def __init__(self, frames: int = 3, points: int = 60, state_size: int = STATE_SIZE) -> None:
+    def __init__(self, frames: int = 3, points: int = 60, state_size: int = STATE_SIZE, stride: int = 1) -> None:
         """Create an empty stack for ``frames`` frames of ``points`` boundary points and
-        ``state_size`` state values."""
-        self._frames, self._poly, self._state = frames, 2 * points, state_size
+        ``state_size`` state values, ``stride`` pushes apart."""
+        self._frames, self._poly, self._state, self._stride = frames, 2 * points, state_size, stride
         self._obs = np.zeros(frames * (2 * points + state_size), dtype=np.float32)
         self._polygons = self._obs[: frames * self._poly].reshape(frames, self._poly)  # views
         self._states = self._obs[frames * self._poly :].reshape(frames, state_size)
+        history = (frames - 1) * stride + 1
+        self._history = np.zeros((history, 2 * points + state_size), dtype=np.float32) if stride > 1 else None
 
     def reset(self, polygon: np.ndarray, state: np.ndarray) -> np.ndarray:
         """Fill every slot with the first frame and return the observation."""
         self._polygons[:] = polygon
         self._states[:] = state
+        if self._history is not None:
+            self._history[:, : self._poly] = polygon
+            self._history[:, self._poly :] = state
         return self.observation()
 
     def push(self, polygon: np.ndarray, state: np.ndarray) -> np.ndarray:
         """Drop the oldest frame, append this one and return the observation."""
+        if self._history is not None:
+            history = self._history
+            history[:-1] = history[1:]
+            history[-1, : self._poly], history[-1, self._poly :] = polygon, state
+            picked = history[:: self._stride]
+            self._polygons[:], self._states[:] = picked[:, : self._poly], picked[:, self._poly :]
+            return self.observation()
         obs, old, split = self._obs, self._poly * (self._frames - 1), self._poly * self._frames
         obs[:old] = obs[self._poly : split]  # overlapping slices: numpy copies as if buffered
         obs[old:split] = polygon

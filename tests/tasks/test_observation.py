@@ -65,3 +65,27 @@ def test_stack_order_oldest_first() -> None:
     obs = stack.push(poly[2], state[2])
     assert [obs[k * 120] for k in range(3)] == [0, 1, 2]
     assert [obs[360 + k * 13] for k in range(3)] == [10, 11, 12]
+
+
+def test_stack_with_a_stride_takes_frames_that_far_apart() -> None:
+    """``stride`` 2: after reset (frame 0) and pushes 1..5 the stack holds frames 1, 3, 5; early on
+    the reset frame fills the older slots."""
+    stack = O.FrameStack(3, 60, stride=2)
+    obs = stack.reset(np.zeros(120), np.full(13, 10.0))
+    for k in range(1, 6):
+        obs = stack.push(np.full(120, float(k)), np.full(13, 10.0 + k))
+        if k == 1:
+            assert [obs[j * 120] for j in range(3)] == [0, 0, 1]
+    assert [obs[j * 120] for j in range(3)] == [1, 3, 5]
+    assert [obs[360 + j * 13] for j in range(3)] == [11, 13, 15]
+    assert obs.shape == (399,) and obs.dtype == np.float32
+
+
+def test_frame_stride_is_a_task_option() -> None:
+    """``task.observation.frame_stride`` reaches the environment's stack; 0 is a named error."""
+    from mjnav.config import load_task
+    from mjnav.schema import ConfigError
+
+    assert load_task("stage5", ["observation.frame_stride=3"]).observation.frame_stride == 3
+    with pytest.raises((ConfigError, ValueError), match="frame_stride"):
+        load_task("stage5", ["observation.frame_stride=0"])
