@@ -122,8 +122,8 @@ class TrainConfig:
         minibatches: Minibatches per pass.
         value_loss_coef: Value loss weight.
         value_clip: Clip each value prediction to within ``clip`` of its rollout value in the value
-            loss (rsl-rl's default). The clip is absolute, so with returns of order 100 (success
-            +140) one update can move a value estimate by at most ``clip``.
+            loss (rsl-rl's default). The clip is absolute: with returns of order 100 (success +140)
+            the loss stops pulling an estimate once it has moved by ``clip`` in one update.
         max_grad_norm: Gradient norm clip.
         optimizer: ``adamw`` (authors) or ``adam``.
         schedule: ``fixed`` (authors) or rsl-rl's KL-``adaptive`` learning rate.
