@@ -235,20 +235,17 @@ def _region(
     r: np.ndarray, th: np.ndarray, cos: np.ndarray, sin: np.ndarray, ordered: bool, cfg: RegionConfig
 ) -> Region:
     """The GALAXY pipeline on checked ranges and angles with their trigonometry."""
-    inflation = cfg.inflation + cfg.margin
-    status, verts, normals, offsets, polar, xy = _galaxy_scan(
-        r, cos, sin, cfg.max_range, inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points, ordered
-    )  # fmt: skip
-    if status != 0 and cfg.margin > 0.0:  # the margin cannot be kept: the paper's region
-        inflation = cfg.inflation
+    # with a margin, the paper's region where the margin cannot be kept
+    levels = (cfg.inflation + cfg.margin, cfg.inflation) if cfg.margin > 0.0 else (cfg.inflation,)
+    for inflation in levels:
         status, verts, normals, offsets, polar, xy = _galaxy_scan(
             r, cos, sin, cfg.max_range, inflation, cfg.flip_radius, cfg.push, cfg.max_vertices, cfg.num_points,
             ordered,
         )  # fmt: skip
-    if status != 0:
-        failed = _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, STATUS_NAMES[status])
-        return _recover(r, cos, sin, ordered, cfg, failed) if cfg.on_failure == "recover" else failed
-    return Region(verts, normals, offsets, polar, xy, True, "ok", False, inflation)
+        if status == 0:
+            return Region(verts, normals, offsets, polar, xy, True, "ok", False, inflation)
+    failed = _fallback(_shrink(r, cfg.max_range, cfg.inflation), th, cfg.num_points, STATUS_NAMES[status])
+    return _recover(r, cos, sin, ordered, cfg, failed) if cfg.on_failure == "recover" else failed
 
 
 def _recover(r: np.ndarray, cos: np.ndarray, sin: np.ndarray, ordered: bool, cfg: RegionConfig,
