@@ -49,7 +49,9 @@ __all__ = [
     "evaluate_tasks",
     "git_commit",
     "held_out_seed",
+    "read_jsonl",
     "run_episode",
+    "seed_paper_rule",
 ]
 
 if TYPE_CHECKING:
@@ -170,7 +172,13 @@ class _Recorder:
         self.solve: list[float] = []
         self.plans: list[dict[str, np.ndarray]] = []
         self.counters = dict(self.task.core.counters)
-        self.planner_stats = dict(getattr(getattr(agent.planner, "planner", None), "stats", {}) or {})
+        self.planner_stats = self._planner_stats()
+        # Under the contact rule, where the paper's rule would have ended the episode (see paper_rule)
+        self.watch_scan = env.task.config.collision == "contact"
+        self.scan_cut: dict[str, Any] | None = None
+
+    def _planner_stats(self) -> dict[str, int]:
+        return dict(getattr(getattr(self.agent.planner, "planner", None), "stats", {}) or {})
 
     def sample(self) -> None:
         p, v, _ = self.task.sim.robot_state(self.env.physics)
@@ -185,22 +193,47 @@ class _Recorder:
             self.solve.append(1e3 * record.solve_time_s)
             self.plans.append({"position": record.position.copy(), "polygon": record.polygon,
                                "q_s": record.q_s.copy(), "q_l": record.q_l.copy(), "predicted": record.predicted})
+        if self.watch_scan and self.scan_cut is None and self.task.core.min_scan <= 0.0:
+            self.scan_cut = {"samples": len(self.positions), "solve": len(self.solve),
+                             "counters": dict(self.task.core.counters), "planner_stats": self._planner_stats()}
 
     def finish(self, outcome: str) -> tuple[EpisodeMetrics, dict[str, int], EpisodeTrace]:
-        core = self.task.core.counters
-        stats = getattr(getattr(self.agent.planner, "planner", None), "stats", {}) or {}
-        stats = {k: int(v - self.planner_stats.get(k, 0)) for k, v in stats.items()}
-        fallbacks = core["fallbacks"] - self.counters["fallbacks"] + stats.get("fallbacks", 0)
-        solve = self.solve if self.agent.planner is None else self.agent.plan_times_ms()
-        metrics = episode_metrics(
-            np.array(self.positions), np.array(self.velocities), self.task.config.timing.control_period,
-            outcome,
-            obstacle_clearances=self.obst, pedestrian_clearances=self.ped, solve_times_ms=solve,
-            fallbacks=fallbacks, region_failures=core["region_failures"] - self.counters["region_failures"],
-            scans=len(self.positions),
-        )
+        """Metrics, planner statistics and trace of the whole episode."""
+        metrics, stats = self._metrics(outcome, len(self.positions), len(self.solve), self.task.core.counters,
+                                       self._planner_stats())
         trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans)
         return metrics, stats, trace
+
+    def paper_rule(self, outcome: str) -> dict[str, Any] | None:
+        """This contact-rule episode's outcome and metrics under the paper's rule (``collision=scan``).
+
+        Both rules see the same scenario, observations and actions up to the first step whose shrunk
+        scan is <= 0; the paper's rule ends the episode there as a collision. If no step got there,
+        the outcome is the contact rule's, except a contact collision: the paper's rule would have
+        gone on, so that episode is undetermined (None) and has to be run under that rule.
+        """
+        if not self.watch_scan or (self.scan_cut is None and outcome == "collision"):
+            return None
+        cut = self.scan_cut or {"samples": len(self.positions), "solve": len(self.solve),
+                                "counters": self.task.core.counters, "planner_stats": self._planner_stats()}
+        metrics, stats = self._metrics("collision" if self.scan_cut else outcome, cut["samples"], cut["solve"],
+                                       cut["counters"], cut["planner_stats"])
+        return {"outcome": metrics.outcome, "metrics": metrics.to_dict(), "planner_stats": stats}
+
+    def _metrics(self, outcome: str, samples: int, solves: int, counters: dict[str, int],
+                 planner_stats: dict[str, int]) -> tuple[EpisodeMetrics, dict[str, int]]:
+        """Metrics of the episode's first ``samples`` control instants (``solves`` MPC solve times)."""
+        stats = {k: int(v - self.planner_stats.get(k, 0)) for k, v in planner_stats.items()}
+        fallbacks = counters["fallbacks"] - self.counters["fallbacks"] + stats.get("fallbacks", 0)
+        solve = self.solve[:solves] if self.agent.planner is None else self.agent.plan_times_ms()[: samples - 1]
+        metrics = episode_metrics(
+            np.array(self.positions[:samples]), np.array(self.velocities[:samples]),
+            self.task.config.timing.control_period, outcome,
+            obstacle_clearances=self.obst[:samples], pedestrian_clearances=self.ped[:samples], solve_times_ms=solve,
+            fallbacks=fallbacks, region_failures=counters["region_failures"] - self.counters["region_failures"],
+            scans=samples,
+        )
+        return metrics, stats
 
 
 def _stack_peds(peds: list[np.ndarray]) -> np.ndarray:
@@ -246,7 +279,8 @@ def run_episode(
         seed: Episode seed.
 
     Returns:
-        (metrics, extras with ``planner_stats``, ``start``, ``goal``, ``trace``).
+        (metrics, extras with ``planner_stats``, ``start``, ``goal`` and, under the contact rule,
+        ``paper_rule`` (:meth:`_Recorder.paper_rule`), trace).
     """
     base = env.unwrapped  # wrappers (TimeLimit, RecordEpisodeStatistics, ...) do not forward task/physics
     agent.begin(base.task, seed)
@@ -262,6 +296,8 @@ def run_episode(
     metrics, stats, trace = rec.finish(info["outcome"])
     layout = base.task.layout
     extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist()}
+    if rec.watch_scan:
+        extras["paper_rule"] = rec.paper_rule(info["outcome"])
     return metrics, extras, trace
 
 
@@ -364,16 +400,10 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         ``commit``, ``seed_offset``).
     """
     from mjnav.envs.factory import resolve_config
-    from mjnav.eval.policies import policy_name as describe
 
     config = resolve_config(spec.task, spec.task_overrides or None)
-    policy_name = describe(spec.policy)
-    commit = git_commit()
-    common = {"task": config.name, "task_version": config.version, "policy": policy_name,
-              "policy_source": spec.policy, "policy_sha256": _file_sha256(spec.policy), "commit": commit,
-              "overrides": spec.task_overrides,
-              "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
-              "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
+    common = _common(spec)
+    policy_name, commit = common["policy"], common["commit"]
     path = None if out_dir is None else Path(out_dir) / f"{config.name}.jsonl"
     done = _resumable(path, common, spec) if path is not None else {}
     todo = [i for i in range(spec.episodes) if i not in done]
@@ -392,6 +422,68 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
     return {**summary_row(summary, config.name, policy_name), "task_version": config.version,
             "commit": commit, "seed_offset": spec.seed_offset}
+
+
+def _common(spec: EvalSpec) -> dict[str, Any]:
+    """The fields every JSONL record of evaluation ``spec`` shares (``_COMMON_KEYS``)."""
+    from mjnav.envs.factory import resolve_config
+    from mjnav.eval.policies import policy_name
+
+    config = resolve_config(spec.task, spec.task_overrides or None)
+    return {"task": config.name, "task_version": config.version, "policy": policy_name(spec.policy),
+            "policy_source": spec.policy, "policy_sha256": _file_sha256(spec.policy), "commit": git_commit(),
+            "overrides": spec.task_overrides,
+            "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
+            "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
+
+
+def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Path) -> int:
+    """Start the paper's-rule evaluation ``spec`` from a contact-rule evaluation of the same policy.
+
+    A contact-rule episode determines its outcome under the paper's rule in all but one case
+    (:meth:`_Recorder.paper_rule`), so those episodes are written to ``<out_dir>/<task>.jsonl``
+    (marked ``"derived_from": "contact"``) as an interrupted run of ``spec``; :func:`evaluate` then
+    runs only the rest. Nothing is written unless the contact records are of the same task,
+    policy, action mode, seeds, code commit and overrides (but the rule) as ``spec``.
+
+    Returns:
+        The number of episodes written.
+    """
+    common = _common(spec)
+    if common["collision"] != "scan":
+        raise ValueError(f"seed_paper_rule: spec must use collision=scan, got {common['collision']!r}")
+    rest = [o for o in common["overrides"] if not o.startswith("collision=")]
+    derived = []
+    for record in read_jsonl(Path(contact_jsonl)):
+        index, paper = record.get("index"), record.get("paper_rule")
+        same = (record.get("collision") == "contact" and isinstance(index, int)
+                and [o for o in record.get("overrides", []) if not o.startswith("collision=")] == rest
+                and all(record.get(k) == common[k] for k in _SPEC_KEYS if k != "overrides"))
+        if not same:
+            return 0
+        if paper is not None and index < spec.episodes and record.get("seed") == held_out_seed(index, spec.seed_offset):
+            derived.append({**common, "index": index, "seed": record["seed"], **paper, "start": record.get("start"),
+                            "goal": record.get("goal"), "derived_from": "contact"})
+    if derived:
+        path = Path(out_dir) / f"{common['task']}.jsonl"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "a", encoding="utf-8") as f:
+            f.writelines(json.dumps(r) + "\n" for r in derived)
+    return len(derived)
+
+
+def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
+    """The records of a JSONL file ([] if it does not exist; a line cut by a kill is skipped)."""
+    path = Path(path)
+    if not path.is_file():
+        return []
+    rows = []
+    for line in path.read_text(encoding="utf-8").splitlines():
+        try:
+            rows.append(json.loads(line))
+        except json.JSONDecodeError:
+            continue
+    return rows
 
 
 #: Fields every record of one evaluation shares (the rest is the episode's, from :func:`_work`).

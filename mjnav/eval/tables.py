@@ -14,16 +14,20 @@ A method whose policy file does not exist is listed as "not trained", never esti
 
 Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
 a policy shared by two tables is evaluated once). A file whose episode count, seed offset, policy
-or action mode differs from the request is evaluated again.
+or action mode differs from the request is evaluated again. The contact rule is run first: its
+episodes carry their outcome under the paper's rule wherever they determine it
+(:func:`mjnav.eval.runner.seed_paper_rule`), so the paper's-rule run only plays the rest.
 """
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+from mjnav.eval.runner import read_jsonl as load_rows
 
 __all__ = ["TABLES", "Method", "Table", "format_table", "load_rows", "table_rows", "wilson"]
 
@@ -108,14 +112,6 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def load_rows(path: Path) -> list[dict[str, Any]]:
-    """The episode records of one evaluation JSONL ([] when the file does not exist)."""
-    if not path.is_file():
-        return []
-    with open(path, encoding="utf-8") as f:
-        return [json.loads(line) for line in f if line.strip()]
-
-
 def _stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     n = len(rows)
     wins = [r for r in rows if r["outcome"] == "success"]
@@ -142,7 +138,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     Baselines (``teb``) have no action mode and always act as themselves.
     """
     from mjnav.eval.policies import BASELINES, training_overrides
-    from mjnav.eval.runner import EvalSpec, evaluate
+    from mjnav.eval.runner import EvalSpec, evaluate, seed_paper_rule
 
     rows = []
     for stage in TABLES[table].stages:
@@ -155,7 +151,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
             if not baseline and not Path(policy).is_file():
                 rows.append({**row, "status": "not trained"})
                 continue
-            for rule in RULES:
+            for rule in ("contact", "scan"):  # the contact run settles most episodes of the paper's rule
                 path = evaluation_path(out, method, stage, rule, mode)
                 found = load_rows(path)
                 if not _matches(found, episodes, seed_offset, policy, mode):
@@ -167,6 +163,10 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                         continue
                     spec = EvalSpec(stage, policy, episodes, seed_offset, (f"collision={rule}",), workers,
                                     training_overrides(policy), mode)
+                    if rule == "scan":
+                        contact = evaluation_path(out, method, stage, "contact", mode)
+                        seeded = seed_paper_rule(contact, spec, path.parent)
+                        print(f"{path}: {seeded} of {episodes} episodes settled by {contact}", file=sys.stderr)
                     evaluate(spec, path.parent, progress=True)
                     path.parent.joinpath(f"{stage}.jsonl").replace(path)
                     found = load_rows(path)

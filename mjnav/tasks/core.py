@@ -173,6 +173,7 @@ class NavCore:
         self._goal = tuple(self.goal.tolist())  # plain floats for the per-step arithmetic
         self.steps = 0
         self.outcome = Outcome.RUNNING
+        self.min_scan = math.inf  # the last step's shrunk scan minimum (the paper's rule collides at <= 0)
         self._mpc.reset()
         self._plan: obs_lib.Plan | None = None
         self._prev = {"q_s": None, "q_l": None, "plan_ok": False, "distance": None, "velocity": velocity.copy()}
@@ -330,7 +331,7 @@ class NavCore:
         pending, prev = self._pending, self._prev
         (px, py), (gx, gy) = position.tolist(), self._goal
         distance = math.hypot(gx - px, gy - py)
-        min_scan = max(float(scan.min()) - self._inflation, 0.0)
+        self.min_scan = min_scan = max(float(scan.min()) - self._inflation, 0.0)
         collision = contact if self.config.collision == "contact" else min_scan <= 0.0
         success = distance < self.config.reward.goal_tolerance and not collision
         self.outcome = self._outcome(success, collision)

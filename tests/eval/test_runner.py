@@ -161,3 +161,38 @@ def test_planner_overrides_and_tuning_scenarios(tmp_path):
     assert runner.held_out_seed(0, runner.TUNING_SEED_OFFSET) > runner.held_out_seed(10**8)  # eval and dev sets
     for module in (dwa, teb):
         assert "TUNING_SEED_OFFSET" in module.__doc__ and "777" not in module.__doc__
+
+
+@pytest.mark.parametrize("policy", ["mpc_goal", "dwa"])
+def test_contact_run_settles_the_paper_rule_exactly(tmp_path, policy):
+    """Episodes the contact run settles under the paper's rule match a direct run of that rule, metrics
+    and all; the paper's-rule run then plays only the rest; another evaluation's records are not used."""
+    common = ("timing.episode_steps=150", "region.on_failure=paper")
+    contact = EvalSpec("stage2", policy, 8, 0, (*common, "collision=contact"), 1)
+    scan = EvalSpec("stage2", policy, 8, 0, (*common, "collision=scan"), 1)
+    evaluate(contact, tmp_path / "contact", progress=False)
+    evaluate(scan, tmp_path / "direct", progress=False)
+    direct = {r["index"]: r for r in runner.read_jsonl(tmp_path / "direct" / "stage2.jsonl")}
+    contact_rows = runner.read_jsonl(tmp_path / "contact" / "stage2.jsonl")
+    settled = runner.seed_paper_rule(tmp_path / "contact" / "stage2.jsonl", scan, tmp_path / "derived")
+    derived = runner.read_jsonl(tmp_path / "derived" / "stage2.jsonl")
+    assert settled == len(derived) == sum(r["paper_rule"] is not None for r in contact_rows) >= 6
+    by_index = {c["index"]: c for c in contact_rows}
+    cut = [r["index"] for r in derived if r["outcome"] == "collision" != by_index[r["index"]]["outcome"]]
+    assert cut or policy == "dwa"  # mpc_goal comes within R_inf of obstacles; DWA (a baseline) keeps clear
+    for r in derived:  # all but the wall-clock solve times, of which there are as many
+        mine, theirs = dict(r["metrics"]), dict(direct[r["index"]]["metrics"])
+        assert len(mine.pop("solve_times_ms")) == len(theirs.pop("solve_times_ms"))
+        assert (r["outcome"], mine) == (direct[r["index"]]["outcome"], theirs)
+    calls = []
+    original = runner._results
+    try:
+        runner._results = lambda s, todo: (calls.append(list(todo)), original(s, todo))[1]
+        evaluate(scan, tmp_path / "derived", progress=False)
+    finally:
+        runner._results = original
+    assert calls == [sorted(set(range(8)) - {r["index"] for r in derived})]
+    final = runner.read_jsonl(tmp_path / "derived" / "stage2.jsonl")
+    assert [r["outcome"] for r in final] == [direct[i]["outcome"] for i in range(8)]
+    other = EvalSpec("stage2", policy, 8, 0, ("timing.episode_steps=100", "collision=scan"), 1)
+    assert runner.seed_paper_rule(tmp_path / "contact" / "stage2.jsonl", other, tmp_path / "other") == 0
