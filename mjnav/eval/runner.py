@@ -50,6 +50,7 @@ __all__ = [
     "git_commit",
     "held_out_seed",
     "read_jsonl",
+    "policy_sha256",
     "run_episode",
     "seed_paper_rule",
 ]
@@ -431,7 +432,7 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
 
     config = resolve_config(spec.task, spec.task_overrides or None)
     return {"task": config.name, "task_version": config.version, "policy": policy_name(spec.policy),
-            "policy_source": spec.policy, "policy_sha256": _file_sha256(spec.policy), "commit": git_commit(),
+            "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy), "commit": git_commit(),
             "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
             "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
@@ -518,7 +519,7 @@ def _episode(record: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in record.items() if k not in _COMMON_KEYS}
 
 
-def _file_sha256(spec: str) -> str | None:
+def policy_sha256(spec: str) -> str | None:
     """First 16 hex digits of the SHA-256 of a policy file (None for baselines and run names)."""
     path = Path(spec)
     if not path.is_file():

@@ -14,7 +14,7 @@ A method whose policy file does not exist is listed as "not trained", never esti
 
 Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
 a policy shared by two tables is evaluated once). A file whose episode count, seed offset, policy
-or action mode differs from the request is evaluated again. The contact rule is run first: its
+or action mode differs from the request, or whose policy file has changed since, is evaluated again. The contact rule is run first: its
 episodes carry their outcome under the paper's rule wherever they determine it
 (:func:`mjnav.eval.runner.seed_paper_rule`), so the paper's-rule run only plays the rest.
 """
@@ -184,10 +184,14 @@ def _policy_file(policy: str, action: str) -> str:
 
 
 def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, policy: str, action: str) -> bool:
+    """The records are ``episodes`` episodes of this policy file (path and content), action mode and seeds."""
+    from mjnav.eval.runner import policy_sha256
+
     if len(found) != episodes:
         return False
     first = found[0]
-    return (first.get("policy_source") == policy and first.get("action_mode", "mean") == action
+    return (first.get("policy_source") == policy and first.get("policy_sha256") == policy_sha256(policy)
+            and first.get("action_mode", "mean") == action
             and first.get("seed") == 2**32 + seed_offset + first.get("index", 0))
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from mjnav.eval import tables
+from mjnav.eval.runner import policy_sha256
 
 
 def test_wilson_interval_brackets_the_rate() -> None:
@@ -37,8 +38,8 @@ def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: py
     for rule, wins in (("scan", 3), ("contact", 4)):
         path = tmp_path / "out" / "ours" / f"stage2_{rule}.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
-        lines = [{"policy_source": str(policy), "index": i, "seed": 2**32 + i, "action_mode": "mean",
-                  "outcome": "success" if i < wins else "collision",
+        lines = [{"policy_source": str(policy), "policy_sha256": policy_sha256(str(policy)), "index": i,
+                  "seed": 2**32 + i, "action_mode": "mean", "outcome": "success" if i < wins else "collision",
                   "metrics": {"time_s": 5.0, "distance_m": 12.0, "mean_speed": 2.0}} for i in range(5)]
         path.write_text("".join(json.dumps(x) + "\n" for x in lines))
     rows = tables.table_rows(2, tmp_path / "out", episodes=5, run_missing=False)
@@ -47,6 +48,8 @@ def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: py
     assert "| stage2 | Ours | 89.2 (5.5 s, 12.19 m, 2.18 m/s) | 60.0 [" in text and "| 80.0 [" in text
     stale = tables.table_rows(2, tmp_path / "out", episodes=6, run_missing=False)
     assert stale[0]["scan"] is None  # other episode count: not reused
+    policy.write_bytes(b"retrained")
+    assert tables.table_rows(2, tmp_path / "out", episodes=5, run_missing=False)[0]["scan"] is None  # new file
 
 
 def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -61,7 +64,8 @@ def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypa
     for rule in tables.RULES:
         path = tmp_path / "out" / "ours" / f"stage5_{rule}.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
-        lines = [{"policy_source": str(policy), "index": i, "seed": 2**32 + i, "action_mode": "mean", "outcome": "success",
+        lines = [{"policy_source": str(policy), "policy_sha256": policy_sha256(str(policy)), "index": i,
+                  "seed": 2**32 + i, "action_mode": "mean", "outcome": "success",
                   "metrics": {"time_s": 3.0, "distance_m": 4.5, "mean_speed": 1.5, "abs_acc_sum": 10.0}} for i in range(4)]
         path.write_text("".join(json.dumps(x) + "\n" for x in lines))
     three = tables.table_rows(3, tmp_path / "out", episodes=4, run_missing=False)
