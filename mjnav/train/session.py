@@ -237,10 +237,14 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
     return RunPlan(run_dir, task, train, overrides, state, init=init, start=start)
 
 
+#: Settings of the machine a run happened to use, not of its recipe: a shipped config's values are not inherited.
+MACHINE_SETTINGS = ("workers", "start_method", "device", "torch_threads", "update_threads", "verbose")
+
+
 def _shipped_recipe(checkpoint: Path, train_overrides: Sequence[str]) -> TrainConfig | None:
     """The PPO config the shipped checkpoint was trained with (its ``NAME_config.yaml``: learning
-    rate schedule, batch, iterations, ...), then the command's ``train.*`` overrides; None without
-    that file."""
+    rate schedule, batch, iterations, ...) but :data:`MACHINE_SETTINGS`, then the command's
+    ``train.*`` overrides; None without that file."""
     from mjnav.eval.policies import policy_config
 
     path = policy_config(checkpoint)
@@ -249,7 +253,8 @@ def _shipped_recipe(checkpoint: Path, train_overrides: Sequence[str]) -> TrainCo
     saved = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     if not isinstance(saved.get("train"), dict):
         return None
-    return load_train(list(train_overrides), base=from_dict(TrainConfig, saved["train"]))
+    recipe = {k: v for k, v in saved["train"].items() if k not in MACHINE_SETTINGS}
+    return load_train(list(train_overrides), base=from_dict(TrainConfig, recipe))
 
 
 def _check_init(path: Path) -> Path:

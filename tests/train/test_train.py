@@ -361,9 +361,10 @@ def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curric
     assert plan.train.iterations == math.ceil(budget)  # no recipe in the config: one stage budget
     assert "shipped policy" in session._start_line(plan)
     (tmp_path / "stage5_config.yaml").write_text(
-        "run:\n  task_overrides: [collision=scan]\ntrain:\n  iterations: 120\n  schedule: fixed\n")
+        "run:\n  task_overrides: [collision=scan]\ntrain:\n  iterations: 120\n  schedule: fixed\n  workers: 1\n")
     recipe = session.plan_run(session.parse_args(["task=stage6", "train.iterations=7"]), root=tmp_path)
     assert recipe.train.schedule == "fixed" and recipe.train.iterations == 7  # its recipe, then the command's
+    assert recipe.train.workers == -1  # how many cores that run had is not part of the recipe
     walk = session.plan_run(session.parse_args(["task=stage6"]), root=tmp_path / "none")
     assert walk.start == "curriculum" and walk.task.name == "stage1"
     assert (walk.train.curriculum.first_stage, walk.train.curriculum.last_stage) == (1, 6)
