@@ -49,8 +49,8 @@ __all__ = [
     "evaluate_tasks",
     "git_commit",
     "held_out_seed",
-    "read_jsonl",
     "policy_sha256",
+    "read_jsonl",
     "run_episode",
     "seed_paper_rule",
 ]
@@ -400,12 +400,9 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         The summary row (:func:`mjnav.eval.metrics.summary_row` plus ``task_version``,
         ``commit``, ``seed_offset``).
     """
-    from mjnav.envs.factory import resolve_config
-
-    config = resolve_config(spec.task, spec.task_overrides or None)
     common = _common(spec)
-    policy_name, commit = common["policy"], common["commit"]
-    path = None if out_dir is None else Path(out_dir) / f"{config.name}.jsonl"
+    task, policy_name, commit = common["task"], common["policy"], common["commit"]
+    path = None if out_dir is None else Path(out_dir) / f"{task}.jsonl"
     done = _resumable(path, common, spec) if path is not None else {}
     todo = [i for i in range(spec.episodes) if i not in done]
     if done and progress:
@@ -413,7 +410,7 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
               file=sys.stderr, flush=True)
     stream = _results(spec, todo)
     if progress:
-        stream = _progress(stream, len(todo), f"{config.name}/{policy_name}")
+        stream = _progress(stream, len(todo), f"{task}/{policy_name}")
     rows = [*done.values(), *(stream if path is None else _append(path, common, stream))]
     rows.sort(key=lambda r: r["index"])
     if path is not None:
@@ -421,7 +418,7 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         partial.write_text("".join(json.dumps({**common, **_episode(r)}) + "\n" for r in rows), encoding="utf-8")
         os.replace(partial, path)  # sorted by index, written atomically
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
-    return {**summary_row(summary, config.name, policy_name), "task_version": config.version,
+    return {**summary_row(summary, task, policy_name), "task_version": common["task_version"],
             "commit": commit, "seed_offset": spec.seed_offset}
 
 
