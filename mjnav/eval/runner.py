@@ -181,6 +181,11 @@ class _Recorder:
     def _planner_stats(self) -> dict[str, int]:
         return dict(getattr(getattr(self.agent.planner, "planner", None), "stats", {}) or {})
 
+    def _snapshot(self) -> dict[str, Any]:
+        """How far the episode has got: samples, solve times, core counters and planner statistics."""
+        return {"samples": len(self.positions), "solve": len(self.solve),
+                "counters": dict(self.task.core.counters), "planner_stats": self._planner_stats()}
+
     def sample(self) -> None:
         p, v, _ = self.task.sim.robot_state(self.env.physics)
         self.positions.append(p)
@@ -195,13 +200,12 @@ class _Recorder:
             self.plans.append({"position": record.position.copy(), "polygon": record.polygon,
                                "q_s": record.q_s.copy(), "q_l": record.q_l.copy(), "predicted": record.predicted})
         if self.watch_scan and self.scan_cut is None and self.task.core.min_scan <= 0.0:
-            self.scan_cut = {"samples": len(self.positions), "solve": len(self.solve),
-                             "counters": dict(self.task.core.counters), "planner_stats": self._planner_stats()}
+            self.scan_cut = self._snapshot()
 
     def finish(self, outcome: str) -> tuple[EpisodeMetrics, dict[str, int], EpisodeTrace]:
         """Metrics, planner statistics and trace of the whole episode."""
-        metrics, stats = self._metrics(outcome, len(self.positions), len(self.solve), self.task.core.counters,
-                                       self._planner_stats())
+        now = self._snapshot()
+        metrics, stats = self._metrics(outcome, now["samples"], now["solve"], now["counters"], now["planner_stats"])
         trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans)
         return metrics, stats, trace
 
@@ -215,8 +219,7 @@ class _Recorder:
         """
         if not self.watch_scan or (self.scan_cut is None and outcome == "collision"):
             return None
-        cut = self.scan_cut or {"samples": len(self.positions), "solve": len(self.solve),
-                                "counters": self.task.core.counters, "planner_stats": self._planner_stats()}
+        cut = self.scan_cut or self._snapshot()
         metrics, stats = self._metrics("collision" if self.scan_cut else outcome, cut["samples"], cut["solve"],
                                        cut["counters"], cut["planner_stats"])
         return {"outcome": metrics.outcome, "metrics": metrics.to_dict(), "planner_stats": stats}
@@ -452,7 +455,7 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
         raise ValueError(f"seed_paper_rule: spec must use collision=scan, got {common['collision']!r}")
     rest = [o for o in common["overrides"] if not o.startswith("collision=")]
     derived = []
-    for record in read_jsonl(Path(contact_jsonl)):
+    for record in read_jsonl(contact_jsonl):
         index, paper = record.get("index"), record.get("paper_rule")
         same = (record.get("collision") == "contact" and isinstance(index, int)
                 and [o for o in record.get("overrides", []) if not o.startswith("collision=")] == rest
@@ -537,11 +540,7 @@ def _resumable(path: Path, common: dict[str, Any], spec: EvalSpec) -> dict[int, 
     if not path.is_file():
         return {}
     kept: dict[int, dict[str, Any]] = {}
-    for line in path.read_text(encoding="utf-8").splitlines():
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError:
-            continue  # a line cut by a kill
+    for record in read_jsonl(path):  # a line cut by a kill is skipped
         index = record.get("index")
         same = all(record.get(k) == common[k] for k in _SPEC_KEYS)
         if not same or not isinstance(index, int) or record.get("seed") != held_out_seed(index, spec.seed_offset):

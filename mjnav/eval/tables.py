@@ -185,14 +185,14 @@ def _policy_file(policy: str, action: str) -> str:
 
 def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, policy: str, action: str) -> bool:
     """The records are ``episodes`` episodes of this policy file (path and content), action mode and seeds."""
-    from mjnav.eval.runner import policy_sha256
+    from mjnav.eval.runner import held_out_seed, policy_sha256
 
     if len(found) != episodes:
         return False
     first = found[0]
     return (first.get("policy_source") == policy and first.get("policy_sha256") == policy_sha256(policy)
             and first.get("action_mode", "mean") == action
-            and first.get("seed") == 2**32 + seed_offset + first.get("index", 0))
+            and first.get("seed") == held_out_seed(first.get("index", 0), seed_offset))
 
 
 def _prefix(found: Sequence[dict[str, Any]], rule: str, seed_offset: int, policy: str, action: str,
