@@ -237,8 +237,17 @@ class NavCore:
 
     def _plan_velocity(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray,
                        accel: np.ndarray) -> np.ndarray:
-        """Designs 1-2: v = v_max·tanh(a) per axis, followed by the jerk-limited velocity tracker."""
+        """Designs 1-2: v = v_max·tanh(a) per axis, followed by the jerk-limited velocity tracker.
+
+        With ``action.heading='velocity'`` the two axes are those of the velocity heading (x along
+        v; heading of a zero vector 0), the frame the observation's dθ is measured in, as Ours'
+        angles are; ``'absolute'`` reads them as world axes (the paper's equation taken literally).
+        """
         command = self._limits.v_max * np.tanh(action)
+        if self.config.action.heading == "velocity":
+            heading = math.atan2(velocity[1], velocity[0])
+            c, s = math.cos(heading), math.sin(heading)
+            command = np.array((c * command[0] - s * command[1], s * command[0] + c * command[1]))
         self._no_plan(position, command * self.config.timing.control_period, None)
         return track_velocity(velocity, accel, command, self._limits)
 

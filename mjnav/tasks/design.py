@@ -19,6 +19,13 @@ Design 4 the region flag (it has no region), Designs 1–2 keep ``ρ, v, dθ`` (
 Design 4 samples both points in the scan's coverage (rays against the closed polyline of the
 ``scan'`` points) and plans without a polygon. Velocity actions are followed by the jerk-limited
 velocity tracker the DWA and TEB baselines use (:func:`mjnav.baselines.tracking.track_velocity`).
+
+The velocity designs read their two axes as ``action.heading`` says, like Ours' and Design 3's
+angles: ``velocity`` (default) along and across the current velocity (world axes at rest), the
+frame their only goal term dθ is measured in; ``absolute`` as world axes, the paper's equation
+taken literally. In world axes the goal direction is heading(v) + π·dθ, which the network has to
+compose from v and dθ, and at rest dθ says nothing (the first Design 1 run learned nothing in
+0.87M steps with it).
 """
 
 from __future__ import annotations

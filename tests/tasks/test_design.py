@@ -34,14 +34,31 @@ def test_design_spaces_and_a_rollout(design: str) -> None:
 
 
 def test_velocity_designs_follow_the_tanh_velocity_command() -> None:
-    """Designs 1-2: a constant raw action drives the robot to v = 2.5·tanh(a) per axis."""
-    env = NavGymEnv("stage1", overrides=["design=design2"], seed=0)
+    """Designs 1-2, world axes (``action.heading=absolute``): a constant raw action drives the robot
+    to v = 2.5·tanh(a) per axis."""
+    env = NavGymEnv("stage1", overrides=["design=design2", "action.heading=absolute"], seed=0)
     env.reset(seed=2)
     action = np.array([0.3, -0.2], dtype=np.float32)
     for _ in range(20):
         env.step(action)
     _, v, _ = env.task.sim.robot_state(env.physics)
     assert np.allclose(v, 2.5 * np.tanh(action), atol=0.05)
+    env.close()
+
+
+def test_velocity_designs_command_in_the_velocity_heading_frame() -> None:
+    """``action.heading=velocity`` (default): x along the current velocity (+x at rest), so a
+    constant (a, 0) keeps the direction and reaches 2.5·tanh(a); a lateral action turns the robot."""
+    env = NavGymEnv("stage1", overrides=["design=design1"], seed=0)
+    env.reset(seed=2)
+    for _ in range(20):
+        env.step(np.array([0.5, 0.0], dtype=np.float32))
+    _, v, _ = env.task.sim.robot_state(env.physics)
+    assert np.allclose(v, (2.5 * np.tanh(0.5), 0.0), atol=0.05)
+    for _ in range(3):
+        env.step(np.array([0.0, 1.0], dtype=np.float32))
+    _, v, _ = env.task.sim.robot_state(env.physics)
+    assert v[1] > 0.1 and np.hypot(*v) > 0.5  # turning left (counter-clockwise) while moving
     env.close()
 
 
