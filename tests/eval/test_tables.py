@@ -58,8 +58,9 @@ def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypa
     policy.write_bytes(b"x")
     for number in (3, 4):
         table = tables.TABLES[number]
-        methods = tuple(dataclasses.replace(m, policy=str(tmp_path / "{stage}_policy.pt")) if m.slug == "ours" else m
-                        for m in table.methods)
+        methods = tuple(dataclasses.replace(m, policy=str(tmp_path / ("{stage}_policy.pt" if m.slug == "ours" else
+                                                                       f"{m.slug}.pt")))
+                        if m.policy != "teb" else m for m in table.methods)
         monkeypatch.setitem(tables.TABLES, number, dataclasses.replace(table, stages=("stage5",), methods=methods))
     for rule in tables.RULES:
         path = tmp_path / "out" / "ours" / f"stage5_{rule}.jsonl"
@@ -71,7 +72,7 @@ def test_crowd_tables_share_ours_and_show_total_abs_acc(tmp_path: Path, monkeypa
     three = tables.table_rows(3, tmp_path / "out", episodes=4, run_missing=False)
     four = tables.table_rows(4, tmp_path / "out", episodes=4, run_missing=False)
     assert three[0]["scan"] == four[1]["scan"] and three[0]["scan"]["abs_acc"] == pytest.approx(40.0)
-    assert [r["status"] for r in three[1:]] == ["not trained"] * 3  # r_t2..r_t4 not shipped here
+    assert [r["status"] for r in three[1:]] == ["not trained"] * 4  # the ablation runs, not shipped here
     assert four[0]["method"] == "TEB" and four[0]["status"] == "ok" and four[0]["scan"] is None  # not run
     text = tables.format_table(three, abs_acc=True)
     assert "Total Abs Acc" in text and "| 40.0 |" in text and "87.1 (2.9 s, 4.59 m, 1.57 m/s, 26475.5)" in text
