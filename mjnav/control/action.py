@@ -65,7 +65,8 @@ class ActionConfig:
     """Action mapping parameters (spec §4).
 
     Attributes:
-        heading: ``velocity`` (θ_s offset by the velocity heading, code) or ``absolute`` (paper).
+        heading: ``velocity`` (θ_s offset by the velocity heading, code) or ``absolute`` (paper);
+            for Designs 1-2 the axes of the velocity command (velocity heading or world).
         long_circle: ``code`` (R_l = max(long_min_radius, 1-s reach)) or ``paper`` (1-s reach).
         jerk_max: Per-axis jerk bound, m/s³; the reach uses ``|j| = jerk_max·√2``.
         t_c: Control period, s (short-term reach time).
