@@ -244,12 +244,18 @@ class NavCore:
         angles are; ``'absolute'`` reads them as world axes (the paper's equation taken literally).
         """
         command = self._limits.v_max * np.tanh(action)
-        if self.config.action.heading == "velocity":
-            heading = math.atan2(velocity[1], velocity[0])
-            c, s = math.cos(heading), math.sin(heading)
-            command = np.array((c * command[0] - s * command[1], s * command[0] + c * command[1]))
+        heading = self._action_heading(velocity)
+        c, s = math.cos(heading), math.sin(heading)
+        command = np.array((c * command[0] - s * command[1], s * command[0] + c * command[1]))
         self._no_plan(position, command * self.config.timing.control_period, None)
         return track_velocity(velocity, accel, command, self._limits)
+
+    def _action_heading(self, velocity: np.ndarray) -> float:
+        """Angle (rad) the action's frame is turned by: the velocity heading with
+        ``action.heading='velocity'`` (0 for a zero velocity), else 0 (world axes)."""
+        if self.config.action.heading != "velocity" or not velocity.any():
+            return 0.0
+        return math.atan2(velocity[1], velocity[0])
 
     def _plan_escape(self, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
         """No region even after recovery (``on_failure='recover'``): back away from the nearest returns."""
@@ -272,8 +278,7 @@ class NavCore:
         t0 = time.perf_counter()
         alpha, beta = sigmoid(action).tolist()
         cfg = self.config.action
-        heading = math.atan2(velocity[1], velocity[0]) if cfg.heading == "velocity" and velocity.any() else 0.0
-        theta = 2.0 * math.pi * alpha + heading
+        theta = 2.0 * math.pi * alpha + self._action_heading(velocity)
         direction = np.array((math.cos(theta), math.sin(theta)))
         _, r_l = radii(velocity, accel, cfg)
         q_l = beta * min(boundary_distance(self.region, _ORIGIN, direction), r_l) * direction
