@@ -432,7 +432,7 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
 
     config = resolve_config(spec.task, spec.task_overrides or None)
     return {"task": config.name, "task_version": config.version, "policy": policy_name(spec.policy),
-            "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy), "commit": git_commit(),
+            "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy, spec.planner), "commit": git_commit(),
             "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
             "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
@@ -519,8 +519,20 @@ def _episode(record: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in record.items() if k not in _COMMON_KEYS}
 
 
-def policy_sha256(spec: str) -> str | None:
-    """First 16 hex digits of the SHA-256 of a policy file (None for baselines and run names)."""
+def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
+    """First 16 hex digits of the SHA-256 of what a policy spec acts with.
+
+    A policy file: its bytes. A baseline with parameters (``teb``, ``dwa``): its resolved parameters
+    (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
+    None for other baselines and run names.
+    """
+    from mjnav.baselines import PLANNER_CONFIGS
+    from mjnav.schema import apply_overrides
+
+    if spec in PLANNER_CONFIGS:
+        config = apply_overrides(PLANNER_CONFIGS[spec](), list(planner))
+        text = json.dumps(dataclasses.asdict(config), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
     path = Path(spec)
     if not path.is_file():
         return None

@@ -14,7 +14,8 @@ A method whose policy file does not exist is listed as "not trained", never esti
 
 Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
 a policy shared by two tables is evaluated once). A file whose episode count, seed offset, policy
-or action mode differs from the request, or whose policy file has changed since, is evaluated again. The contact rule is run first: its
+or action mode differs from the request, or whose policy file (a baseline: its parameters,
+:func:`mjnav.eval.runner.policy_sha256`) has changed since, is evaluated again. The contact rule is run first: its
 episodes carry their outcome under the paper's rule wherever they determine it
 (:func:`mjnav.eval.runner.seed_paper_rule`), so the paper's-rule run only plays the rest.
 """

@@ -84,7 +84,8 @@ def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> N
     of the other rule is not."""
     folder = tmp_path / "teb"
     folder.mkdir()
-    lines = [{"policy_source": "teb", "index": i, "seed": 2**32 + i, "collision": "scan", "action_mode": "mean",
+    lines = [{"policy_source": "teb", "policy_sha256": policy_sha256("teb"), "index": i, "seed": 2**32 + i,
+              "collision": "scan", "action_mode": "mean",
               "outcome": "success" if i % 2 else "collision",
               "metrics": {"time_s": 4.0, "distance_m": 4.0, "mean_speed": 1.0, "abs_acc_sum": 5.0}} for i in range(6)]
     (folder / "stage6.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines))
@@ -99,3 +100,26 @@ def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> N
     (folder / "stage6.jsonl").write_text("".join(json.dumps({**x, "collision": "contact"}) + "\n" for x in lines))
     rows = tables.table_rows(4, tmp_path, episodes=1000, run_missing=False)
     assert next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")["scan"] is None  # other rule
+
+
+def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A baseline's records carry a hash of its resolved parameters: the same parameters match, a
+    changed default (or an override) does not, so a re-tuned TEB is never reported with old episodes."""
+    from mjnav.baselines import PLANNER_CONFIGS, TebConfig
+
+    assert policy_sha256("teb") == policy_sha256("teb") != policy_sha256("teb", ["d_inflation=1.5"])
+    assert policy_sha256("dwa") != policy_sha256("teb") and policy_sha256("mpc_goal") is None
+    table = tables.TABLES[4]
+    monkeypatch.setitem(tables.TABLES, 4, dataclasses.replace(table, stages=("stage6",), methods=table.methods[:1]))
+    for rule in tables.RULES:
+        path = tmp_path / "teb" / f"stage6_{rule}.jsonl"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lines = [{"policy_source": "teb", "policy_sha256": policy_sha256("teb"), "index": i, "seed": 2**32 + i,
+                  "collision": rule, "action_mode": "mean", "outcome": "success",
+                  "metrics": {"time_s": 4.0, "distance_m": 4.0, "mean_speed": 1.0}} for i in range(3)]
+        path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"]["success"] == 3
+    retuned = dataclasses.make_dataclass("TebConfig", [("d_inflation", float, 1.8)], bases=(TebConfig,),
+                                       frozen=TebConfig.__dataclass_params__.frozen)
+    monkeypatch.setitem(PLANNER_CONFIGS, "teb", retuned)
+    assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"] is None
