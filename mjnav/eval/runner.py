@@ -432,8 +432,8 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
 
     config = resolve_config(spec.task, spec.task_overrides or None)
     return {"task": config.name, "task_version": config.version, "policy": policy_name(spec.policy),
-            "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy, spec.planner), "commit": git_commit(),
-            "overrides": spec.task_overrides,
+            "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy, spec.planner),
+            "commit": git_commit(), "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
             "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
 

@@ -102,7 +102,8 @@ def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> N
     assert next(r for r in rows if r["stage"] == "stage6" and r["method"] == "TEB")["scan"] is None  # other rule
 
 
-def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """A baseline's records carry a hash of its resolved parameters: the same parameters match, a
     changed default (or an override) does not, so a re-tuned TEB is never reported with old episodes."""
     from mjnav.baselines import PLANNER_CONFIGS, TebConfig
