@@ -2,30 +2,27 @@
 
 from __future__ import annotations
 
-import re
 import tomllib
 from pathlib import Path
 
+from packaging.requirements import Requirement
+from packaging.utils import canonicalize_name
 from packaging.version import Version
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _name(requirement: str) -> str:
-    return re.split(r"[<>=!~\[; ]", requirement, maxsplit=1)[0].lower().replace("_", "-")
+def _floor(requirement: Requirement) -> Version:
+    """The version a ``>=`` (or ``==``) specifier of ``requirement`` starts at."""
+    floors = [Version(s.version) for s in requirement.specifier if s.operator in (">=", "==")]
+    assert len(floors) == 1, f"{requirement} declares no single lower bound"
+    return floors[0]
 
 
 def test_every_declared_floor_is_the_version_the_lower_bound_check_pins() -> None:
     """Each runtime dependency's ``>=`` floor (or ``==`` pin) appears, as ``==``, in the lower-bounds file."""
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    floors = {}
-    for requirement in project["dependencies"]:
-        found = re.search(r"(>=|==)\s*([0-9][^,;\s]*)", requirement)
-        assert found, f"{requirement!r} declares no lower bound"
-        floors[_name(requirement)] = Version(found.group(2))
-    pins = {}
-    for line in (ROOT / ".ci" / "lower-bounds.txt").read_text().splitlines():
-        if line.strip() and not line.startswith("#"):
-            name, version = line.split("==")
-            pins[_name(name)] = Version(version)
-    assert pins == floors
+    declared = map(Requirement, tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"])
+    floors = {canonicalize_name(r.name): _floor(r) for r in declared}
+    lines = (ROOT / ".ci" / "lower-bounds.txt").read_text().splitlines()
+    pinned = (Requirement(line) for line in lines if line.strip() and not line.startswith("#"))
+    assert {canonicalize_name(r.name): _floor(r) for r in pinned} == floors

@@ -28,6 +28,7 @@ __all__ = [
     "TebConfig",
     "TebPlanner",
     "make_planner",
+    "planner_config",
 ]
 
 if TYPE_CHECKING:
@@ -46,13 +47,28 @@ PLANNERS: dict[str, Callable[[], Planner]] = {
 PLANNER_CONFIGS: dict[str, type] = {"dwa": DwaConfig, "teb": TebConfig}
 
 
+def planner_config(name: str, overrides: Sequence[str] = ()) -> object | None:
+    """The parameters a planner runs with: its :data:`PLANNER_CONFIGS` defaults plus ``overrides``
+    (None for a planner without parameters and no overrides).
+
+    Raises:
+        ConfigError: Overrides for a planner without parameters, or a bad override (unknown field,
+            bad value: :func:`mjnav.schema.apply_overrides`).
+    """
+    if name not in PLANNER_CONFIGS:
+        if overrides:
+            raise ConfigError(f"planner overrides {list(overrides)}: {name} has no parameters "
+                              f"(configurable: {', '.join(sorted(PLANNER_CONFIGS))})")
+        return None
+    return apply_overrides(PLANNER_CONFIGS[name](), list(overrides))
+
+
 def make_planner(name: str, overrides: Sequence[str] = ()) -> Planner:
     """A fresh planner by name (one of :data:`PLANNERS`).
 
     Args:
         name: Planner name.
-        overrides: ``["w_clearance=0.8", ...]`` applied to its :data:`PLANNER_CONFIGS` dataclass
-            (unknown fields and bad values are rejected by :func:`mjnav.schema.apply_overrides`).
+        overrides: ``["w_clearance=0.8", ...]`` applied to its parameters (:func:`planner_config`).
 
     Raises:
         KeyError: For an unknown name (the message lists the known ones).
@@ -62,7 +78,4 @@ def make_planner(name: str, overrides: Sequence[str] = ()) -> Planner:
         raise KeyError(f"unknown baseline {name!r} (known: {', '.join(sorted(PLANNERS))})")
     if not overrides:
         return PLANNERS[name]()
-    if name not in PLANNER_CONFIGS:
-        raise ConfigError(f"planner overrides {list(overrides)}: {name} has no parameters "
-                          f"(configurable: {', '.join(sorted(PLANNER_CONFIGS))})")
-    return PLANNERS[name](apply_overrides(PLANNER_CONFIGS[name](), list(overrides)))
+    return PLANNERS[name](planner_config(name, overrides))

@@ -526,12 +526,10 @@ def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
     None for other baselines and run names.
     """
-    from mjnav.baselines import PLANNER_CONFIGS
-    from mjnav.schema import apply_overrides
+    from mjnav.baselines import PLANNER_CONFIGS, planner_config
 
     if spec in PLANNER_CONFIGS:
-        config = apply_overrides(PLANNER_CONFIGS[spec](), list(planner))
-        text = json.dumps(dataclasses.asdict(config), sort_keys=True)
+        text = json.dumps(dataclasses.asdict(planner_config(spec, planner)), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
     path = Path(spec)
     if not path.is_file():
