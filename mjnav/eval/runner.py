@@ -473,6 +473,30 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
     return len(derived)
 
 
+def settle_from_contact(spec: EvalSpec, contact_dir: str | Path, out_dir: str | Path, report: bool = True) -> int:
+    """Write the episodes of paper's-rule ``spec`` that ``<contact_dir>/<task>.jsonl`` settles.
+
+    The output file is first brought to what :func:`evaluate` would resume from (records of another
+    evaluation dropped), so settling twice, or into an interrupted run, never duplicates or mixes.
+    Contact records of another commit, policy, seed range or overrides settle nothing (0, reported).
+
+    Raises:
+        EvalError: ``spec`` is not evaluated under the paper's rule (``collision=scan``).
+    """
+    common = _common(spec)
+    if common["collision"] != "scan":
+        raise EvalError(f"from_contact: the evaluation must use task.collision=scan, got {common['collision']!r}")
+    path = Path(out_dir) / f"{common['task']}.jsonl"
+    done = _resumable(path, common, spec)
+    contact = Path(contact_dir) / f"{common['task']}.jsonl"
+    settled = seed_paper_rule(contact, spec, out_dir) if len(done) < spec.episodes else 0
+    if report:
+        why = "" if settled or len(done) == spec.episodes else (
+            " (missing, or not a contact run of this policy, seeds, overrides and code commit)")
+        print(f"{path}: {settled} of {spec.episodes} episodes settled by {contact}{why}", file=sys.stderr, flush=True)
+    return settled
+
+
 def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
     """The records of a JSONL file ([] if it does not exist; a line cut by a kill is skipped)."""
     path = Path(path)
@@ -563,10 +587,19 @@ def _resumable(path: Path, common: dict[str, Any], spec: EvalSpec) -> dict[int, 
 
 
 def evaluate_tasks(
-    specs: Sequence[EvalSpec], out_dir: str | Path, progress: bool = True
+    specs: Sequence[EvalSpec], out_dir: str | Path, progress: bool = True, from_contact: str | Path | None = None
 ) -> list[dict[str, Any]]:
-    """Evaluate several tasks; writes per-task JSONL plus ``summary.csv`` and ``summary.md``."""
-    rows = [evaluate(spec, out_dir, progress) for spec in specs]
+    """Evaluate several tasks; writes per-task JSONL plus ``summary.csv`` and ``summary.md``.
+
+    Args:
+        from_contact: Folder of a contact-rule evaluation of the same policy, seeds and code commit:
+            each paper's-rule ``spec`` first takes the episodes it settles (:func:`settle_from_contact`).
+    """
+    rows = []
+    for spec in specs:
+        if from_contact is not None:
+            settle_from_contact(spec, from_contact, out_dir, progress)
+        rows.append(evaluate(spec, out_dir, progress))
     out = Path(out_dir)
     write_csv(rows, out / "summary.csv")
     (out / "summary.md").write_text(format_markdown(rows), encoding="utf-8")
@@ -576,12 +609,13 @@ def evaluate_tasks(
 # ---------------------------------------------------------------------------- command line
 
 _USAGE = ("usage: evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6] "
-          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|expected|sample] [task.KEY=VALUE ...] "
-          "[planner.KEY=VALUE ...]")
+          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|expected|sample] [from_contact=DIR] "
+          "[task.KEY=VALUE ...] [planner.KEY=VALUE ...]")
 
 
-def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
-    """``key=value`` arguments → evaluation specs (one per task) and the output folder.
+def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
+    """``key=value`` arguments → evaluation specs (one per task), the output folder and the
+    ``from_contact`` folder (None when not given).
 
     Raises:
         ValueError: On an unknown key, a missing policy or a malformed argument.
@@ -597,7 +631,7 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
             overrides.append(f"{key[5:]}={value}")
         elif key.startswith("planner."):
             planner.append(f"{key[8:]}={value}")
-        elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset", "action"):
+        elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset", "action", "from_contact"):
             args[key] = value
         else:
             raise ValueError(f"unknown argument {key!r}\n{_USAGE}")
@@ -619,7 +653,10 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path]:
     specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action,
                       tuple(planner)) for t in tasks if t.strip()]
     out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
-    return specs, out
+    from_contact = Path(args["from_contact"]) if "from_contact" in args else None
+    if from_contact is not None and not from_contact.is_dir():
+        raise ValueError(f"from_contact: no such folder {str(from_contact)!r}")
+    return specs, out, from_contact
 
 
 def _integer(args: dict[str, str], key: str, default: int, minimum: int) -> int:
@@ -635,12 +672,12 @@ def _integer(args: dict[str, str], key: str, default: int, minimum: int) -> int:
 def main(argv: Sequence[str]) -> int:
     """Command-line entry: evaluate, write the files, print the table; returns the exit code."""
     try:
-        specs, out = parse_args(argv)
+        specs, out, from_contact = parse_args(argv)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     try:
-        rows = evaluate_tasks(specs, out)
+        rows = evaluate_tasks(specs, out, from_contact=from_contact)
     except (ConfigError, FileNotFoundError, EvalError) as err:  # bad task, override or policy
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -87,8 +87,8 @@ def test_evaluate_writes_jsonl_csv_markdown(tmp_path):
 def test_parse_args_multi_task():
     """tasks= gives one spec per stage; task.KEY=VALUE become overrides."""
     argv = ["tasks=stage5,stage6", "policy=teb", "episodes=7", "workers=1", "task.crowd.count=3"]
-    specs, out = parse_args(argv)
-    assert [s.task for s in specs] == ["stage5", "stage6"]
+    specs, out, from_contact = parse_args(argv)
+    assert [s.task for s in specs] == ["stage5", "stage6"] and from_contact is None
     assert specs[0].episodes == 7 and specs[0].overrides == ("crowd.count=3",)
     assert out.name == "teb"
     with pytest.raises(ValueError):
@@ -97,6 +97,8 @@ def test_parse_args_multi_task():
         parse_args(["task=stage5", "policy=teb", "episodes=0"])
     with pytest.raises(ValueError, match="workers: expected an integer"):
         parse_args(["task=stage5", "policy=teb", "workers=two"])
+    with pytest.raises(ValueError, match="from_contact: no such folder"):
+        parse_args(["task=stage5", "policy=teb", "from_contact=/nonexistent/evals"])
 
 
 @pytest.mark.parametrize("workers", [1, 2])
@@ -150,7 +152,7 @@ def test_interrupted_evaluation_resumes_without_duplicates(tmp_path):
 def test_planner_overrides_and_tuning_scenarios(tmp_path):
     """planner.KEY=VALUE reaches the baseline's config and the JSONL; a typo or a planner without
     parameters is an error; the tuning scenarios lie outside every evaluation set."""
-    specs, _ = parse_args(["task=stage5", "policy=dwa", "planner.w_clearance=0.8", "episodes=1", "workers=1"])
+    specs, _, _ = parse_args(["task=stage5", "policy=dwa", "planner.w_clearance=0.8", "episodes=1", "workers=1"])
     assert specs[0].planner == ("w_clearance=0.8",)
     agent = load_policy("dwa", planner=specs[0].planner)
     assert agent.planner.planner.config.w_clearance == 0.8
@@ -161,6 +163,35 @@ def test_planner_overrides_and_tuning_scenarios(tmp_path):
     assert runner.held_out_seed(0, runner.TUNING_SEED_OFFSET) > runner.held_out_seed(10**8)  # eval and dev sets
     for module in (dwa, teb):
         assert "TUNING_SEED_OFFSET" in module.__doc__ and "777" not in module.__doc__
+
+
+def test_from_contact_settles_on_the_command_line(tmp_path, capsys):
+    """evaluate.py from_contact=DIR takes what the contact run settles and plays only the rest;
+    settling again never duplicates; a contact-rule evaluation or other records are refused or unused."""
+    common = ["task=stage2", "policy=mpc_goal", "episodes=4", "workers=1", "task.timing.episode_steps=60"]
+    assert runner.main([*common, "task.collision=contact", f"out={tmp_path / 'contact'}"]) == 0
+    calls = []
+    original = runner._results
+    try:
+        runner._results = lambda s, todo: (calls.append(list(todo)), original(s, todo))[1]
+        for _ in range(2):
+            assert runner.main([*common, "task.collision=scan", f"from_contact={tmp_path / 'contact'}",
+                                f"out={tmp_path / 'scan'}"]) == 0
+    finally:
+        runner._results = original
+    settled = [r for r in runner.read_jsonl(tmp_path / "scan" / "stage2.jsonl") if r.get("derived_from") == "contact"]
+    contact = runner.read_jsonl(tmp_path / "contact" / "stage2.jsonl")
+    assert len(settled) == sum(r["paper_rule"] is not None for r in contact) >= 3
+    assert len(runner.read_jsonl(tmp_path / "scan" / "stage2.jsonl")) == 4
+    assert calls[0] == sorted(set(range(4)) - {r["index"] for r in settled}) and calls[1] == []
+    err = capsys.readouterr().err
+    assert f"{len(settled)} of 4 episodes settled by" in err
+    assert runner.main([*common, "task.collision=contact", f"from_contact={tmp_path / 'contact'}",
+                        f"out={tmp_path / 'again'}"]) == 2
+    assert "must use task.collision=scan" in capsys.readouterr().err
+    other = EvalSpec("stage2", "mpc_goal", 4, 0, ("timing.episode_steps=50", "collision=scan"), 1)
+    assert runner.settle_from_contact(other, tmp_path / "contact", tmp_path / "other") == 0
+    assert "not a contact run of this policy" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("policy", ["mpc_goal", "dwa"])
