@@ -1,6 +1,7 @@
 """Non-learned navigation baselines, each a :class:`mjnav.tasks.core.Planner`.
 
-``mpc_goal`` (convex region + MPC towards the goal), ``teb`` (timed elastic band), ``dwa``
+``mpc_goal`` (convex region + MPC towards the goal), ``mpc_gap`` (the same towards open space near
+the goal direction), ``teb`` (timed elastic band), ``dwa``
 (dynamic window) and ``random_jerk`` (:class:`RandomPlanner`). Set ``env.task.planner`` to one
 and the task uses it instead of the learned action layer; the episode and its scoring stay the
 same. Pure numpy/scipy; every planner brakes (and counts it in ``stats``) instead of raising.
@@ -12,7 +13,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from mjnav.baselines.dwa import DwaConfig, DwaPlanner
-from mjnav.baselines.mpc_goal import MpcGoalPlanner
+from mjnav.baselines.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
 from mjnav.baselines.random import RandomActionPolicy, RandomPlanner
 from mjnav.baselines.teb import TebConfig, TebPlanner
 from mjnav.schema import ConfigError, apply_overrides
@@ -22,6 +23,8 @@ __all__ = [
     "PLANNER_CONFIGS",
     "DwaConfig",
     "DwaPlanner",
+    "MpcGapConfig",
+    "MpcGapPlanner",
     "MpcGoalPlanner",
     "RandomActionPolicy",
     "RandomPlanner",
@@ -37,6 +40,7 @@ if TYPE_CHECKING:
 #: Planner factories by policy name.
 PLANNERS: dict[str, Callable[[], Planner]] = {
     "mpc_goal": MpcGoalPlanner,
+    "mpc_gap": MpcGapPlanner,
     "teb": TebPlanner,
     "dwa": DwaPlanner,
     "random_jerk": RandomPlanner,
@@ -44,7 +48,7 @@ PLANNERS: dict[str, Callable[[], Planner]] = {
 
 
 #: Parameter dataclass of each planner that takes ``planner.<field>=value`` overrides.
-PLANNER_CONFIGS: dict[str, type] = {"dwa": DwaConfig, "teb": TebConfig}
+PLANNER_CONFIGS: dict[str, type] = {"dwa": DwaConfig, "teb": TebConfig, "mpc_gap": MpcGapConfig}
 
 
 def planner_config(name: str, overrides: Sequence[str] = ()) -> object | None:
