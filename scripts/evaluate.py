@@ -4,7 +4,7 @@
                                [workers=N] [out=DIR] [seed_offset=0] [action=mean|sample]
                                [from_contact=DIR] [task.crowd.count=25]
 
-PATH_OR_NAME: a run folder, ``policy.pt``, ``model_<it>.pt`` or a baseline (mpc_goal, teb, dwa,
+PATH_OR_NAME: a run folder, ``policy.pt``, ``model_<it>.pt`` or a baseline (mpc_goal, mpc_gap, teb, dwa,
 random, random_jerk). A learned policy is evaluated with the task overrides it was trained with
 (design, reward variant, collision rule, ...: ``run.task_overrides`` of its ``config.yaml``), then
 the command's ``task.*`` overrides. ``action=sample`` samples the policy's Gaussian (checkpoints

@@ -12,7 +12,7 @@ from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import compute_region
 from mjnav.tasks.core import PlannerInput
 
-GOAL_PLANNERS = ("mpc_goal", "teb", "dwa")
+GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "teb", "dwa")
 
 
 @pytest.fixture(scope="module")
@@ -108,3 +108,29 @@ def test_escape_backs_away_from_the_nearest_returns():
     assert np.allclose(v, [-0.2, 0.0], atol=0.02)
     scan[[179, 180, 181]] = 0.23  # the same return behind: no way out, stop
     assert np.allclose(escape(scan, angles, np.zeros(2), np.zeros(2), lim, speed=0.2), 0.0)
+
+
+def test_mpc_gap_heads_for_open_space_near_the_goal_direction():
+    """With the goal direction blocked close ahead and open space 90° to the left, mpc_gap's Q_l goes
+    left while mpc_goal's stays on the goal line; without the clearance term both agree; Q_s lies on
+    Q_l's ray within the short-term circle; bad parameters are refused."""
+    from mjnav.baselines import MpcGapConfig
+    from mjnav.baselines.mpc_goal import reference_points
+    from mjnav.schema import ConfigError
+
+    angles = beam_angles(360)
+    scan = np.full(360, 6.0)
+    deg = np.degrees(angles) % 360
+    scan[(deg < 40) | (deg > 320)] = 1.0  # an obstacle 1 m ahead along +x (the goal direction)
+    region = compute_region(scan, angles)
+    goal = np.array([5.0, 0.0])
+    _, straight, _ = reference_points(region, goal, 0.3)
+    q_s, q_l, inside = reference_points(region, goal, 0.3, gap=MpcGapConfig())
+    assert not inside and abs(straight[1]) < 1e-9 and straight[0] < 1.0
+    assert q_l[1] > 1.0 and np.hypot(*q_l) > 2.0  # sideways, into the open
+    assert np.hypot(*q_s) <= 0.3 + 1e-9 and abs(q_s[0] * q_l[1] - q_s[1] * q_l[0]) < 1e-9 and q_s @ q_l > 0
+    _, plain, _ = reference_points(region, goal, 0.3, gap=MpcGapConfig(clearance_weight=0.0))
+    assert np.allclose(plain / np.hypot(*plain), [1.0, 0.0])
+    for bad in ({"clearance_weight": -1.0}, {"clearance_cap": 0.0}, {"directions": 3}, {"safety": 1.5}):
+        with pytest.raises(ConfigError):
+            MpcGapConfig(**bad)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from mjnav.baselines import dwa, teb
+from mjnav.baselines import dwa, mpc_goal, teb
 from mjnav.eval import runner
 from mjnav.eval.policies import load_policy
 from mjnav.eval.runner import (
@@ -161,7 +161,7 @@ def test_planner_overrides_and_tuning_scenarios(tmp_path):
     with pytest.raises(ConfigError, match="mpc_goal has no parameters"):
         load_policy("mpc_goal", planner=("safety=1",))
     assert runner.held_out_seed(0, runner.TUNING_SEED_OFFSET) > runner.held_out_seed(10**8)  # eval and dev sets
-    for module in (dwa, teb):
+    for module in (dwa, teb, mpc_goal):
         assert "TUNING_SEED_OFFSET" in module.__doc__ and "777" not in module.__doc__
 
 
