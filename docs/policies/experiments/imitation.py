@@ -1,0 +1,153 @@
+"""Imitation warm start for Ours from mpc_gap (lab tool, not in mjnav).
+
+    python bc.py teacher STAGE N SEED0            # success of the teacher acting through Ours' action layer
+    python bc.py collect OUT.npz STAGES N SEED0 [STUDENT_CKPT BETA]   # (obs, target logits); DAgger if student
+    python bc.py fit OUT_DIR BASE_CKPT DATA.npz [DATA2.npz ...]       # BC of the actor -> OUT_DIR/model_0.pt
+    python bc.py student CKPT STAGE N SEED0       # success of the student (mean action)
+
+The teacher's Q_l is mpc_gap's; its action keeps (α_s, β_s) = (0.5, 0.3) (Q_s a little behind the
+robot, where it hardly moves the MPC, as the PPO policies do), so α_l ≈ 0.5 for a Q_l ahead: no
+wrap-around at "straight on". Targets are logits of the action clipped to [0.02, 0.98].
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+OVERRIDES = ["collision=scan", "region.margin=0.1"]
+A_S, B_S = 0.5, 0.3
+
+
+def logit(x):
+    x = np.clip(x, 0.02, 0.98)
+    return np.log(x / (1 - x))
+
+
+def teacher_action(env) -> np.ndarray:
+    from mjnav.baselines.mpc_goal import MpcGapConfig, reference_points
+    from mjnav.control.action import map_action_values, radii
+
+    task = env.task
+    physics = env._env.physics
+    p, v, a = task.sim.robot_state(physics)
+    core = task.core
+    region = core.region
+    goal = np.asarray(core.goal) - p
+    cfg = core.config.action
+    r_s, _ = radii(v, a, cfg)
+    _, q_l, _ = reference_points(region, goal, r_s, 0.9, MpcGapConfig())
+    motion = [float(x) for x in (*v, *a, *goal)]
+    pts = map_action_values([A_S, B_S, 0.0, 1.0, *motion], region, cfg)
+    w = q_l - pts.q_s
+    n = float(np.hypot(*w))
+    if n < 1e-6:
+        return logit(np.array([A_S, B_S, 0.5, 0.02]))
+    a_l = ((math.atan2(w[1], w[0]) - pts.theta_s) % (2 * math.pi)) / (2 * math.pi)
+    pts2 = map_action_values([A_S, B_S, a_l, 1.0, *motion], region, cfg)
+    b_l = n / max(pts2.d_theta_l, 1e-9)
+    return logit(np.array([A_S, B_S, a_l, b_l]))
+
+
+def make_env(stage):
+    from mjnav.envs.gym_env import NavGymEnv
+
+    return NavGymEnv(stage, overrides=OVERRIDES, seed=0)
+
+
+def load_student(ckpt):
+    import torch
+
+    from mjnav.eval.policies import build_actor
+
+    state = torch.load(ckpt, map_location="cpu", weights_only=False)["actor_state_dict"]
+    net = build_actor(state, ("relu", "relu", "hardswish")).eval()
+    return lambda obs: net(torch.as_tensor(obs, dtype=torch.float32)[None]).detach().numpy()[0]
+
+
+def run(stage, n, seed0, act, record=None, teacher_label=False):
+    env = make_env(stage)
+    outcomes = {}
+    for ep in range(n):
+        obs, _ = env.reset(options={"episode_seed": seed0 + ep})
+        for _ in range(300):
+            action = act(env, obs)
+            if record is not None:
+                record[0].append(obs.copy())
+                record[1].append(teacher_action(env) if teacher_label else action)
+            obs, _, term, trunc, info = env.step(action.astype(np.float32))
+            if term or trunc:
+                break
+        outcomes[info["outcome"]] = outcomes.get(info["outcome"], 0) + 1
+    env.close()
+    return outcomes
+
+
+def main(argv):
+    mode = argv[0]
+    if mode == "teacher":
+        stage, n, seed0 = argv[1], int(argv[2]), int(argv[3])
+        print(stage, run(stage, n, seed0, lambda env, obs: teacher_action(env)), flush=True)
+    elif mode == "student":
+        ckpt, stage, n, seed0 = argv[1], argv[2], int(argv[3]), int(argv[4])
+        pol = load_student(ckpt)
+        print(stage, run(stage, n, seed0, lambda env, obs: pol(obs)), flush=True)
+    elif mode == "collect":
+        out, stages, n, seed0 = argv[1], argv[2].split(","), int(argv[3]), int(argv[4])
+        student = load_student(argv[5]) if len(argv) > 5 else None
+        beta = float(argv[6]) if len(argv) > 6 else 1.0
+        rng = np.random.default_rng(seed0)
+        obs_l, act_l = [], []
+        for stage in stages:
+            if student is None:
+                act = lambda env, obs: teacher_action(env)  # noqa: E731
+            else:
+                act = lambda env, obs: teacher_action(env) if rng.random() < beta else student(obs)  # noqa: E731
+            res = run(stage, n, seed0, act, (obs_l, act_l), teacher_label=True)
+            print(stage, res, len(obs_l), flush=True)
+        np.savez_compressed(out, obs=np.array(obs_l, np.float32), act=np.array(act_l, np.float32))
+    elif mode == "fit":
+        import torch
+
+        from mjnav.eval.policies import build_actor
+
+        out_dir, base = Path(argv[1]), argv[2]
+        data = [np.load(f) for f in argv[3:]]
+        obs = torch.as_tensor(np.concatenate([d["obs"] for d in data]))
+        act = torch.as_tensor(np.concatenate([d["act"] for d in data]))
+        ckpt = torch.load(base, map_location="cpu", weights_only=False)
+        net = build_actor(ckpt["actor_state_dict"], ("relu", "relu", "hardswish"))
+        epochs = int(__import__("os").environ.get("BC_EPOCHS", "30"))
+        opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+        sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
+        torch.manual_seed(0)
+        n = len(obs)
+        perm = torch.randperm(n)
+        val, tr = perm[: n // 10], perm[n // 10:]
+        for epoch in range(epochs):
+            net.train()
+            for idx in tr[torch.randperm(len(tr))].split(1024):
+                loss = ((net(obs[idx]) - act[idx]) ** 2).mean()
+                opt.zero_grad()
+                loss.backward()
+                opt.step()
+            sched.step()
+            if epoch % 5 == 4 or epoch == epochs - 1:
+                with torch.no_grad():
+                    err = ((net(obs[val]) - act[val]) ** 2).mean(0)
+                print(f"epoch {epoch + 1}: val mse per output {err.numpy().round(4)}", flush=True)
+        state = {f"mlp.{k}": v for k, v in net.state_dict().items()}
+        ckpt["actor_state_dict"].update(state)
+        ckpt["actor_state_dict"]["distribution.log_std_param"] = torch.full((4,), -1.5)
+        ckpt["iter"] = 0
+        ckpt.pop("optimizer_state_dict", None)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        torch.save(ckpt, out_dir / "model_0.pt")
+        print("wrote", out_dir / "model_0.pt")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
