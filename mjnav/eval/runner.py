@@ -53,6 +53,7 @@ __all__ = [
     "read_jsonl",
     "run_episode",
     "seed_paper_rule",
+    "settle_from_contact",
 ]
 
 if TYPE_CHECKING:
@@ -473,10 +474,10 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
     return len(derived)
 
 
-def settle_from_contact(spec: EvalSpec, contact_dir: str | Path, out_dir: str | Path, report: bool = True) -> int:
-    """Write the episodes of paper's-rule ``spec`` that ``<contact_dir>/<task>.jsonl`` settles.
+def settle_from_contact(spec: EvalSpec, contact: str | Path, out_dir: str | Path, report: bool = True) -> int:
+    """Write the episodes of paper's-rule ``spec`` that a contact run settles (:func:`seed_paper_rule`).
 
-    The output file is first brought to what :func:`evaluate` would resume from (records of another
+    ``contact`` is the contact run's JSONL, or its folder (then ``<contact>/<task>.jsonl``). The output file is first brought to what :func:`evaluate` would resume from (records of another
     evaluation dropped), so settling twice, or into an interrupted run, never duplicates or mixes.
     Contact records of another commit, policy, seed range or overrides settle nothing (0, reported).
 
@@ -488,7 +489,9 @@ def settle_from_contact(spec: EvalSpec, contact_dir: str | Path, out_dir: str | 
         raise EvalError(f"from_contact: the evaluation must use task.collision=scan, got {common['collision']!r}")
     path = Path(out_dir) / f"{common['task']}.jsonl"
     done = _resumable(path, common, spec)
-    contact = Path(contact_dir) / f"{common['task']}.jsonl"
+    contact = Path(contact)
+    if contact.is_dir():
+        contact = contact / f"{common['task']}.jsonl"
     settled = seed_paper_rule(contact, spec, out_dir) if len(done) < spec.episodes else 0
     if report:
         why = "" if settled or len(done) == spec.episodes else (

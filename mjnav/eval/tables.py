@@ -17,13 +17,12 @@ a policy shared by two tables is evaluated once). A file whose episode count, se
 or action mode differs from the request, or whose policy file (a baseline: its parameters,
 :func:`mjnav.eval.runner.policy_sha256`) has changed since, is evaluated again. The contact rule is run first: its
 episodes carry their outcome under the paper's rule wherever they determine it
-(:func:`mjnav.eval.runner.seed_paper_rule`), so the paper's-rule run only plays the rest.
+(:func:`mjnav.eval.runner.settle_from_contact`), so the paper's-rule run only plays the rest.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -141,7 +140,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     Baselines (``teb``) have no action mode and always act as themselves.
     """
     from mjnav.eval.policies import BASELINES, training_overrides
-    from mjnav.eval.runner import EvalSpec, evaluate, seed_paper_rule
+    from mjnav.eval.runner import EvalSpec, evaluate, settle_from_contact
 
     rows = []
     for stage in TABLES[table].stages:
@@ -168,8 +167,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                                     training_overrides(policy), mode)
                     if rule == "scan":
                         contact = evaluation_path(out, method, stage, "contact", mode)
-                        seeded = seed_paper_rule(contact, spec, path.parent)
-                        print(f"{path}: {seeded} of {episodes} episodes settled by {contact}", file=sys.stderr)
+                        settle_from_contact(spec, contact, path.parent)
                     evaluate(spec, path.parent, progress=True)
                     path.parent.joinpath(f"{stage}.jsonl").replace(path)
                     found = load_rows(path)
