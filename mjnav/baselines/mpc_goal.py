@@ -33,6 +33,7 @@ Tuning (:class:`MpcGapConfig`): stage 5, 200 tuning scenarios (``seed_offset=100
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import TYPE_CHECKING
 
@@ -80,14 +81,22 @@ class MpcGapConfig:
             raise ConfigError(f"safety: must be in (0, 1], got {self.safety}")
 
 
+@functools.lru_cache(maxsize=8)
+def _unit_directions(count: int) -> np.ndarray:
+    """(count, 2) unit vectors evenly spaced over the circle (read-only, shared)."""
+    angles = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
+    dirs = np.column_stack([np.cos(angles), np.sin(angles)])
+    dirs.flags.writeable = False
+    return dirs
+
+
 def _gap_direction(region: Region, unit_goal: np.ndarray, gap: MpcGapConfig) -> tuple[np.ndarray, float]:
     """The candidate direction with the best goal/clearance score and its boundary distance (m)."""
-    angles = np.linspace(0.0, 2.0 * np.pi, gap.directions, endpoint=False)
-    dirs = np.column_stack([np.cos(angles), np.sin(angles)])
+    dirs = _unit_directions(gap.directions)
     free = np.array([boundary_distance(region, np.zeros(2), u) for u in dirs])
     score = dirs @ unit_goal + gap.clearance_weight * np.minimum(free, gap.clearance_cap) / gap.clearance_cap
     best = int(np.argmax(score))
-    return dirs[best], float(free[best])
+    return dirs[best].copy(), float(free[best])
 
 
 def reference_points(
