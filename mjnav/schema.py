@@ -354,15 +354,22 @@ class ObservationConfig:
         angle: ``mpc`` (code: previous MPC direction vs goal) or ``velocity`` (paper).
         frame_stride: Control steps between stacked frames (1: consecutive, the paper's). Not in
             the paper: at 1 a pedestrian moves 3-6 cm between frames, the size of the scan noise.
+        frame: Axes of every angle and velocity: ``world`` (the paper's) or ``goal`` (turned so
+            that the goal lies at angle 0; not in the paper). Each frame is turned by the goal
+            direction at its own step. With ``goal`` the same scene seen from another direction
+            gives the same observation, so the network need not compose the goal direction from
+            the world-frame polar angles, velocity and dθ; pair it with ``action.heading='goal'``.
     """
 
     frames: int = 3
     angle: Literal["mpc", "velocity"] = "mpc"
     frame_stride: int = 1
+    frame: Literal["world", "goal"] = "world"
 
     def __post_init__(self) -> None:
         check(self.frames >= 1, "frames", "must be >= 1")
         check(self.frame_stride >= 1, "frame_stride", "must be >= 1")
+        check(self.frame in ("world", "goal"), "frame", "must be 'world' or 'goal'")
 
 
 def _is_dataclass_type(tp: Any) -> bool:

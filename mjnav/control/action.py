@@ -9,8 +9,9 @@ Everything here is in the robot frame (metres, radians, SI).
   directions (velocity heading, acceleration heading, their bisector and its negative) with
   ``|j| = jerk_max·√2`` (the box corner).
 * ``θ_s = 2π α_s + heading(v)`` (``heading='velocity'``, code) or ``2π α_s`` (``'absolute'``,
-  paper); heading of a zero vector is 0. The ray from the robot at ``θ_s`` meets the boundary of
-  polygon ∩ disc(R_s) at distance ``d_θ^s`` (exact: ``min`` of the exact ray/convex-polygon
+  paper), or ``2π α_s + direction(goal)`` (``'goal'``, not in the paper: see
+  :class:`ActionConfig`); heading of a zero vector is 0. The ray from the robot at ``θ_s``
+  meets the boundary of polygon ∩ disc(R_s) at distance ``d_θ^s`` (exact: ``min`` of the exact ray/convex-polygon
   distance and ``R_s``); ``Q_s = β_s d_θ^s (cos θ_s, sin θ_s)``.
 * ``θ_l = θ_s + 2π α_l`` (= ``2π α_l`` + direction O→Q_s); from ``Q_s`` the ray meets
   polygon ∩ disc(O, R_l) at ``d_θ^l``; ``Q_l = Q_s + β_l d_θ^l (cos θ_l, sin θ_l)``.
@@ -52,8 +53,8 @@ from mjnav.geometry.region import Region
 from mjnav.schema import check as _check
 
 __all__ = [
-    "ActionConfig", "ActionPoints", "boundary_distance", "goal_inside", "map_action", "map_action_values", "radii",
-    "reach_distance",
+    "ActionConfig", "ActionPoints", "boundary_distance", "goal_inside", "heading_angle", "map_action",
+    "map_action_values", "radii", "reach_distance",
 ]
 
 TWO_PI = 2.0 * math.pi
@@ -65,8 +66,12 @@ class ActionConfig:
     """Action mapping parameters (spec §4).
 
     Attributes:
-        heading: ``velocity`` (θ_s offset by the velocity heading, code) or ``absolute`` (paper);
-            for Designs 1-2 the axes of the velocity command (velocity heading or world).
+        heading: ``velocity`` (θ_s offset by the velocity heading, code), ``absolute`` (paper) or
+            ``goal`` (θ_s offset by the goal direction; not in the paper: with it α = 0.5 puts Q_s
+            straight away from the goal and Q_l, for α_l = 0.5, straight towards it, so the
+            network's outputs are measured from the one direction that matters most; pair it with
+            ``observation.frame='goal'``); for Designs 1-2 the axes of the velocity command
+            (velocity heading, world or goal direction).
         long_circle: ``code`` (R_l = max(long_min_radius, 1-s reach)) or ``paper`` (1-s reach).
         jerk_max: Per-axis jerk bound, m/s³; the reach uses ``|j| = jerk_max·√2``.
         t_c: Control period, s (short-term reach time).
@@ -75,7 +80,7 @@ class ActionConfig:
         long_min_radius: Lower bound on R_l with ``long_circle='code'``, metres.
     """
 
-    heading: Literal["velocity", "absolute"] = "velocity"
+    heading: Literal["velocity", "absolute", "goal"] = "velocity"
     long_circle: Literal["code", "paper"] = "code"
     jerk_max: float = 8.0
     t_c: float = 0.1
@@ -84,7 +89,9 @@ class ActionConfig:
     long_min_radius: float = 10.0
 
     def __post_init__(self) -> None:
-        _check(self.heading in ("velocity", "absolute"), "heading", "must be 'velocity' or 'absolute'")
+        _check(
+            self.heading in ("velocity", "absolute", "goal"), "heading", "must be 'velocity', 'absolute' or 'goal'"
+        )
         _check(self.long_circle in ("code", "paper"), "long_circle", "must be 'code' or 'paper'")
         for name in ("jerk_max", "t_c", "long_time", "short_scale"):
             value = getattr(self, name)
@@ -185,8 +192,8 @@ def map_action_values(values: Sequence[float], region: Region, config: ActionCon
     cfg = config if config is not None else _DEFAULT
     out = _map_kernel(
         *values, region.has_polygon, region.normals, region.offsets, region.boundary_xy,
-        cfg.heading == "velocity", cfg.long_circle == "code", cfg.jerk_max * math.sqrt(2.0), cfg.t_c,
-        cfg.long_time, cfg.short_scale, cfg.long_min_radius,
+        heading_angle(cfg.heading, values[4:6], values[8:10]), cfg.long_circle == "code",
+        cfg.jerk_max * math.sqrt(2.0), cfg.t_c, cfg.long_time, cfg.short_scale, cfg.long_min_radius,
     )  # fmt: skip
     q_s, q_l = np.array(out[0:2]), np.array(out[2:4])
     inside = bool(out[10])
@@ -198,12 +205,12 @@ def map_action_values(values: Sequence[float], region: Region, config: ActionCon
 def _map_kernel(
     a_s: float, b_s: float, a_l: float, b_l: float, vx: float, vy: float, ax: float, ay: float,
     gx: float, gy: float, convex: bool, normals: np.ndarray, offsets: np.ndarray, star: np.ndarray,
-    heading_velocity: bool, code_circle: bool, jerk: float, t_c: float, long_time: float,
+    heading: float, code_circle: bool, jerk: float, t_c: float, long_time: float,
     short_scale: float, long_min_radius: float,
 ) -> tuple:  # pragma: no cover - numba; fmt: skip
     """:func:`map_action` on floats: (qsx, qsy, qlx, qly, θ_s, θ_l, d_s, d_l, R_s, R_l, inside)."""
     r_s, r_l = _radii_kernel(vx, vy, ax, ay, jerk, t_c, long_time, short_scale, code_circle, long_min_radius)
-    theta_s = TWO_PI * a_s + (math.atan2(vy, vx) if heading_velocity else 0.0)
+    theta_s = TWO_PI * a_s + heading
     cs, ss = math.cos(theta_s), math.sin(theta_s)
     d_s = min(_boundary(convex, normals, offsets, star, 0.0, 0.0, cs, ss), r_s)
     qsx, qsy = (b_s * d_s) * cs, (b_s * d_s) * ss
@@ -216,6 +223,24 @@ def _map_kernel(
     else:
         inside = _in_star(gx, gy, star)
     return qsx, qsy, qlx, qly, _wrap(theta_s), _wrap(theta_l), d_s, d_l, r_s, r_l, inside
+
+
+def heading_angle(mode: str, velocity: Sequence[float], goal_rel: Sequence[float]) -> float:
+    """Angle (rad) the action's directions are measured from (:attr:`ActionConfig.heading`).
+
+    Args:
+        mode: ``velocity``, ``absolute`` or ``goal``.
+        velocity: Robot velocity, m/s.
+        goal_rel: Goal relative to the robot, metres.
+
+    Returns:
+        The velocity heading, 0, or the goal direction; the heading of a zero vector is 0.
+    """
+    if mode == "velocity":
+        return math.atan2(velocity[1], velocity[0])
+    if mode == "goal":
+        return math.atan2(goal_rel[1], goal_rel[0])
+    return 0.0
 
 
 def radii(velocity: np.ndarray, acceleration: np.ndarray, config: ActionConfig) -> tuple[float, float]:

@@ -18,7 +18,7 @@ import typing
 import numpy as np
 
 from mjnav.baselines.tracking import Limits, escape, track_velocity
-from mjnav.control.action import boundary_distance, goal_inside, map_action_values, radii
+from mjnav.control.action import boundary_distance, goal_inside, heading_angle, map_action_values, radii
 from mjnav.control.guarded import GuardedMpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, RegionFinder, scan_polygon
@@ -194,10 +194,13 @@ class NavCore:
         return region
 
     def _frame(self, position: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        polygon = obs_lib.polygon_block(self.region.boundary, self._inflation)
+        rotation = 0.0
+        if self.config.observation.frame == "goal":
+            rotation = math.atan2(self._goal[1] - position[1], self._goal[0] - position[0])
+        polygon = obs_lib.polygon_block(self.region.boundary, self._inflation, rotation)
         state = obs_lib.state_block(
             position, velocity, self.goal, self.region.success, self._plan, self._inflation,
-            self.config.observation.angle,
+            self.config.observation.angle, rotation,
         )
         return polygon, (state if self.design.name == "ours" else state[self._columns])
 
@@ -241,21 +244,20 @@ class NavCore:
 
         With ``action.heading='velocity'`` the two axes are those of the velocity heading (x along
         v; heading of a zero vector 0), the frame the observation's dθ is measured in, as Ours'
-        angles are; ``'absolute'`` reads them as world axes (the paper's equation taken literally).
+        angles are; ``'absolute'`` reads them as world axes (the paper's equation taken literally);
+        ``'goal'`` as along and across the goal direction.
         """
         command = self._limits.v_max * np.tanh(action)
-        heading = self._action_heading(velocity)
+        heading = self._action_heading(velocity, position)
         c, s = math.cos(heading), math.sin(heading)
         command = np.array((c * command[0] - s * command[1], s * command[0] + c * command[1]))
         self._no_plan(position, command * self.config.timing.control_period, None)
         return track_velocity(velocity, accel, command, self._limits)
 
-    def _action_heading(self, velocity: np.ndarray) -> float:
-        """Angle (rad) the action's frame is turned by: the velocity heading with
-        ``action.heading='velocity'`` (0 for a zero velocity), else 0 (world axes)."""
-        if self.config.action.heading != "velocity" or not velocity.any():
-            return 0.0
-        return math.atan2(velocity[1], velocity[0])
+    def _action_heading(self, velocity: np.ndarray, position: np.ndarray) -> float:
+        """Angle (rad) the action's frame is turned by (``action.heading``, see
+        :func:`~mjnav.control.action.heading_angle`)."""
+        return heading_angle(self.config.action.heading, velocity.tolist(), (self.goal - position).tolist())
 
     def _plan_escape(self, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
         """No region even after recovery (``on_failure='recover'``): back away from the nearest returns."""
@@ -278,7 +280,7 @@ class NavCore:
         t0 = time.perf_counter()
         alpha, beta = sigmoid(action).tolist()
         cfg = self.config.action
-        theta = 2.0 * math.pi * alpha + self._action_heading(velocity)
+        theta = 2.0 * math.pi * alpha + self._action_heading(velocity, position)
         direction = np.array((math.cos(theta), math.sin(theta)))
         _, r_l = radii(velocity, accel, cfg)
         q_l = beta * min(boundary_distance(self.region, _ORIGIN, direction), r_l) * direction

@@ -66,27 +66,40 @@ def observation_size(frames: int = 3, points: int = 60, state_size: int = STATE_
     return frames * (2 * points + state_size)
 
 
-def polygon_block(boundary: np.ndarray, inflation: float) -> np.ndarray:
+def polygon_block(boundary: np.ndarray, inflation: float, rotation: float = 0.0) -> np.ndarray:
     """Interleaved (r̂, θ̂) of the resampled boundary points.
 
     Args:
-        boundary: (M, 2) points as (r, θ) with r the shrunk distance in metres and θ in [0, 2π).
+        boundary: (M, 2) points as (r, θ) with r the shrunk distance in metres and θ in [0, 2π),
+            in ascending θ (CCW from the smallest angle).
         inflation: R_inf in metres, added back to r.
+        rotation: Angle (rad) of the observation's x axis (``observation.frame``): each θ becomes
+            ``(θ − rotation) mod 2π`` and the points start again from the smallest.
 
     Returns:
         (2M,) float64 with r̂ = clip((r + R_inf)/10, 0, 1) and θ̂ = θ/2π.
     """
     b = np.asarray(boundary, dtype=np.float64)
     out = np.empty(2 * len(b))
-    _polygon_kernel(b, float(inflation), out)
+    _polygon_kernel(b, float(inflation), float(rotation), out)
     return out
 
 
 @njit(cache=True)
-def _polygon_kernel(boundary: np.ndarray, inflation: float, out: np.ndarray) -> None:  # pragma: no cover
-    for i in range(boundary.shape[0]):
-        out[2 * i] = min(max((boundary[i, 0] + inflation) / RANGE_SCALE, 0.0), 1.0)
-        out[2 * i + 1] = boundary[i, 1] / (2.0 * math.pi)
+def _polygon_kernel(
+    boundary: np.ndarray, inflation: float, rotation: float, out: np.ndarray
+) -> None:  # pragma: no cover - numba
+    m = boundary.shape[0]
+    start, best = 0, 10.0
+    if rotation != 0.0:
+        for i in range(m):
+            t = (boundary[i, 1] - rotation) % (2.0 * math.pi)
+            if t < best:
+                best, start = t, i
+    for k in range(m):
+        i = start + k if start + k < m else start + k - m
+        out[2 * k] = min(max((boundary[i, 0] + inflation) / RANGE_SCALE, 0.0), 1.0)
+        out[2 * k + 1] = ((boundary[i, 1] - rotation) % (2.0 * math.pi)) / (2.0 * math.pi)
 
 
 def state_block(
@@ -97,6 +110,7 @@ def state_block(
     plan: Plan | None,
     inflation: float,
     angle_mode: str = "mpc",
+    rotation: float = 0.0,
 ) -> np.ndarray:
     """The 13 state values of one frame.
 
@@ -108,6 +122,8 @@ def state_block(
         plan: The last successful plan, or None at reset or after a failed plan.
         inflation: R_inf, metres.
         angle_mode: ``mpc`` (code) or ``velocity`` (paper) for the heading-error term.
+        rotation: Angle (rad) of the observation's x axis (``observation.frame``): velocities are
+            turned by ``-rotation`` and polar angles measured from it (dθ and distances do not change).
 
     Returns:
         (13,) float64.
@@ -115,7 +131,9 @@ def state_block(
     robot = np.array([position, velocity, goal], dtype=np.float64).reshape(3, 2)
     points = _NO_PLAN if plan is None else plan.points
     out = np.empty(STATE_SIZE)
-    _state_kernel(robot, bool(region_ok), plan is not None, points, float(inflation), angle_mode == "mpc", out)
+    _state_kernel(
+        robot, bool(region_ok), plan is not None, points, float(inflation), angle_mode == "mpc", float(rotation), out
+    )
     return out
 
 
@@ -123,14 +141,17 @@ _NO_PLAN = np.zeros((6, 2))
 
 
 @njit(cache=True)
-def _polar(x: float, y: float, inflation: float) -> tuple[float, float]:  # pragma: no cover - numba
-    return math.atan2(y, x) / math.pi, (math.hypot(x, y) + inflation) / RANGE_SCALE
+def _polar(x: float, y: float, inflation: float, rotation: float) -> tuple[float, float]:  # pragma: no cover
+    angle = math.atan2(y, x)
+    if rotation != 0.0:
+        angle = (angle - rotation + math.pi) % (2.0 * math.pi) - math.pi
+    return angle / math.pi, (math.hypot(x, y) + inflation) / RANGE_SCALE
 
 
 @njit(cache=True)
 def _state_kernel(
     robot: np.ndarray, region_ok: bool, has_plan: bool, points: np.ndarray, inflation: float, mpc_angle: bool,
-    out: np.ndarray,
+    rotation: float, out: np.ndarray,
 ) -> None:  # pragma: no cover - numba; fmt: skip
     """:func:`state_block` into ``out``; rows of ``robot``: position, velocity, goal."""
     gx, gy = robot[2, 0] - robot[0, 0], robot[2, 1] - robot[0, 1]  # velocity against goal - position
@@ -140,16 +161,18 @@ def _state_kernel(
         gx, gy = robot[2, 0] - points[4, 0], robot[2, 1] - points[4, 1]
     out[0] = math.atan2(ax * gy - ay * gx, ax * gx + ay * gy) / math.pi
     out[1] = math.hypot(robot[2, 0] - robot[0, 0], robot[2, 1] - robot[0, 1]) / DISTANCE_SCALE
-    out[2], out[3] = robot[1, 0] / SPEED_SCALE, robot[1, 1] / SPEED_SCALE
+    c, s = math.cos(rotation), math.sin(rotation)
+    out[2] = (c * robot[1, 0] + s * robot[1, 1]) / SPEED_SCALE
+    out[3] = (c * robot[1, 1] - s * robot[1, 0]) / SPEED_SCALE
     out[4] = 1.0 if region_ok else 0.0
     if not has_plan:
         out[5] = out[6] = out[9] = out[10] = 0.0
         out[7] = out[8] = out[11] = out[12] = inflation / RANGE_SCALE
         return
-    out[5], out[7] = _polar(points[0, 0], points[0, 1], inflation)
-    out[6], out[8] = _polar(points[1, 0], points[1, 1], inflation)
-    out[9], out[11] = _polar(points[2, 0], points[2, 1], inflation)
-    out[10], out[12] = _polar(points[3, 0], points[3, 1], inflation)
+    out[5], out[7] = _polar(points[0, 0], points[0, 1], inflation, rotation)
+    out[6], out[8] = _polar(points[1, 0], points[1, 1], inflation, rotation)
+    out[9], out[11] = _polar(points[2, 0], points[2, 1], inflation, rotation)
+    out[10], out[12] = _polar(points[3, 0], points[3, 1], inflation, rotation)
 
 
 class FrameStack:

@@ -85,6 +85,17 @@ def test_heading_option_offsets_theta_s():
     assert code.theta_l == pytest.approx(code.theta_s)
 
 
+def test_goal_heading_measures_both_points_from_the_goal_direction():
+    """heading='goal': α_s = 0.5 puts Q_s straight away from the goal, α_l = 0.5 points Q_l at it."""
+    region = _open_region()
+    goal = np.array([-30.0, 30.0])  # direction 3π/4
+    act = np.array([0.5, 0.3, 0.5, 0.5])
+    pts = map_action(act, region, np.array([1.0, 0.0]), np.zeros(2), goal, ActionConfig(heading="goal"))
+    assert pts.theta_s == pytest.approx(-math.pi / 4)
+    assert pts.theta_l == pytest.approx(3 * math.pi / 4)
+    assert float(np.dot(pts.q_l - pts.q_s, goal)) > 0.0
+
+
 def test_goal_inside_overrides_only_the_mpc_reference():
     """A goal inside the polygon becomes q_l_ref; the network's q_l is kept."""
     region = _open_region()

@@ -53,6 +53,36 @@ def test_state_block_with_plan() -> None:
     assert paper[0] == pytest.approx(0.5)
 
 
+def _turn(xy: np.ndarray, angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([c * xy[0] - s * xy[1], s * xy[0] + c * xy[1]])
+
+
+def test_goal_frame_sees_a_turned_scene_the_same() -> None:
+    """observation.frame='goal': a scene and the same scene turned about the robot give one frame."""
+    rng = np.random.default_rng(3)
+    theta = np.sort(rng.uniform(0, 2 * np.pi, 60))
+    radius = rng.uniform(0.5, 6.0, 60)
+    pts = [rng.normal(size=2) for _ in range(4)]
+    velocity, goal = np.array([0.7, -0.4]), np.array([4.0, 1.5])
+    blocks = []
+    for turn in (0.0, 2.1):
+        order = np.argsort(np.mod(theta + turn, 2 * np.pi), kind="stable")
+        boundary = np.stack([radius[order], np.mod(theta + turn, 2 * np.pi)[order]], axis=1)
+        q = [_turn(p, turn) for p in pts]
+        plan = O.Plan(q_s=q[0], q_l=q[1], q1=q[2], qn=q[3], q1_world=q[2], qn_world=q[3])
+        g = _turn(goal, turn)
+        rotation = float(np.arctan2(g[1], g[0]))
+        blocks.append(np.concatenate([
+            O.polygon_block(boundary, 0.325, rotation),
+            O.state_block(np.zeros(2), _turn(velocity, turn), g, True, plan, 0.325, "mpc", rotation),
+        ]))
+    np.testing.assert_allclose(blocks[0], blocks[1], atol=1e-9)
+    assert blocks[0][1] == pytest.approx(blocks[0][1::2][:60].min())  # starts from the smallest turned angle
+    world = O.state_block(np.zeros(2), velocity, goal, True, None, 0.325)
+    assert np.hypot(*blocks[0][122:124]) == pytest.approx(np.hypot(*world[2:4]))
+
+
 def test_stack_order_oldest_first() -> None:
     """The stack is [3 polygon blocks, 3 state blocks], oldest first, reset fills every slot."""
     stack = O.FrameStack(3, 60)

@@ -8,6 +8,8 @@
 The teacher's Q_l is mpc_gap's; its action keeps (α_s, β_s) = (0.5, 0.3) (Q_s a little behind the
 robot, where it hardly moves the MPC, as the PPO policies do), so α_l ≈ 0.5 for a Q_l ahead: no
 wrap-around at "straight on". Targets are logits of the action clipped to [0.02, 0.98].
+IMIT_OVERRIDES (comma-separated task overrides, e.g. action.heading=goal,observation.frame=goal)
+adds to the task's overrides.
 """
 
 from __future__ import annotations
@@ -18,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-OVERRIDES = ["collision=scan", "region.margin=0.1"]
+OVERRIDES = ["collision=scan", "region.margin=0.1"] + [
+    o for o in __import__("os").environ.get("IMIT_OVERRIDES", "").split(",") if o
+]
 A_S, B_S = 0.5, 0.3
 
 
