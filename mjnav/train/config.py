@@ -129,6 +129,10 @@ class TrainConfig:
         schedule: ``fixed`` (authors) or rsl-rl's KL-``adaptive`` learning rate.
         desired_kl: Target KL of the adaptive schedule.
         random_initial_lengths: Randomise the episode clock at start (rsl-rl's init_at_random_ep_len).
+        critic_warmup: The run's first iterations (numbered from 0) in which only the critic
+            learns: the actor's weights and log-std stay as loaded. For a run started (``init=``)
+            from an actor whose critic does not fit it (an imitation warm start, another
+            observation), so that the first advantages do not undo the actor. 0: off.
         device: Torch device of the networks and returned tensors (``cpu``, ``cuda``, ``cuda:1``).
         torch_threads: Intra-op threads of the trainer process while it collects rollouts (0: torch
             default). 1 by default: on a 2-core box torch's two OpenMP threads spin against the env
@@ -162,6 +166,7 @@ class TrainConfig:
     schedule: Literal["fixed", "adaptive"] = "adaptive"
     desired_kl: float = 0.01
     random_initial_lengths: bool = False
+    critic_warmup: int = 0
     device: str = "cpu"
     torch_threads: int = 1
     update_threads: int = 0
@@ -184,6 +189,7 @@ class TrainConfig:
         batch = self.num_envs * self.steps_per_env
         _check(batch % self.minibatches == 0, "minibatches", f"must divide num_envs*steps_per_env ({batch})")
         _check(self.save_interval >= 1, "save_interval", "must be >= 1")
+        _check(self.critic_warmup >= 0, "critic_warmup", "must be >= 0")
         _check(self.torch_threads >= 0, "torch_threads", "must be >= 0")
         _check(self.update_threads >= 0, "update_threads", "must be >= 0")
         device_ok = _DEVICE.fullmatch(self.device) is not None

@@ -172,6 +172,7 @@ def build_runner(
         )
     runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
     _thread_the_update(runner, train.update_threads or usable_cores())
+    _warm_up_critic(runner, train.critic_warmup)
     _atomic_saves(runner)
     runner.mjnav_verbose = train.verbose  # type: ignore[attr-defined]
     return runner
@@ -214,6 +215,37 @@ def _thread_the_update(runner: OnPolicyRunner, threads: int) -> None:
     runner.alg.update = threaded_update
 
 
+def _warm_up_critic(runner: OnPolicyRunner, iterations: int) -> None:
+    """Freeze the actor (weights and log-std) in the updates of iterations ``0 .. iterations-1``.
+
+    With ``requires_grad`` off the actor's parameters get no gradient, and the optimiser skips
+    parameters without one, so only the critic moves; the surrogate and entropy terms are then
+    constants of the loss. :func:`learn` sets the number of the next iteration. Wraps the
+    runner's ``alg.update`` on the instance, as :func:`_thread_the_update` does.
+    """
+    runner.mjnav_iteration = 0  # type: ignore[attr-defined]
+    if iterations <= 0:
+        return
+    update = runner.alg.update
+
+    @functools.wraps(update)
+    def update_with_warmup(*args: Any, **kwargs: Any) -> Any:
+        iteration = runner.mjnav_iteration
+        runner.mjnav_iteration = iteration + 1
+        if iteration >= iterations:
+            return update(*args, **kwargs)
+        actor = list(runner.alg.actor.parameters())
+        for p in actor:
+            p.requires_grad_(False)
+        try:
+            return update(*args, **kwargs)
+        finally:
+            for p in actor:
+                p.requires_grad_(True)
+
+    runner.alg.update = update_with_warmup
+
+
 def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool = False) -> None:
     """Run ``iterations`` PPO iterations, numbered on from ``runner.current_learning_iteration``.
 
@@ -222,6 +254,7 @@ def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool 
             a completed iteration; the weights are not saved yet (:func:`save_checkpoint`).
     """
     runner.logger.cfg["logger"]["start_iteration"] = runner.current_learning_iteration
+    runner.mjnav_iteration = runner.current_learning_iteration  # type: ignore[attr-defined]
     try:
         with contextlib.redirect_stdout(_BlockFilter(sys.stdout, getattr(runner, "mjnav_verbose", False))):
             runner.learn(iterations, init_at_random_ep_len=random_initial_lengths)

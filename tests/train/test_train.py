@@ -166,6 +166,26 @@ def test_update_runs_with_update_threads_and_collection_with_torch_threads(
         torch.set_num_threads(before)
 
 
+def test_critic_warmup_freezes_the_actor_for_its_iterations(tiny: TrainConfig, tmp_path: Path) -> None:
+    """train.critic_warmup=2: iterations 0 and 1 move only the critic, iteration 2 the actor too."""
+    train = dataclasses.replace(tiny, critic_warmup=2)
+    runner = build_runner(make_fake_env(None, train), train, None)
+
+    def weights(name: str) -> list[torch.Tensor]:
+        return [p.detach().clone() for p in getattr(runner.alg, name).parameters()]
+
+    actor, critic = weights("actor"), weights("critic")
+    learn(runner, 2)
+    assert all(torch.equal(a, b) for a, b in zip(actor, weights("actor"), strict=True))
+    assert not all(torch.equal(a, b) for a, b in zip(critic, weights("critic"), strict=True))
+    assert all(p.requires_grad for p in runner.alg.actor.parameters())
+    learn(runner, 1)
+    runner.env.close()
+    assert not all(torch.equal(a, b) for a, b in zip(actor, weights("actor"), strict=True))
+    with pytest.raises(ConfigError, match="critic_warmup"):
+        load_train(["critic_warmup=-1"])
+
+
 def test_resume_continues_iteration_count(tiny: TrainConfig, tmp_path: Path) -> None:
     """Loading the latest checkpoint continues at the next iteration and restores the weights."""
     first = _trained(tiny, tmp_path)
