@@ -3,7 +3,8 @@
     python scripts/kill_resume.py [kills=5] [iterations=40] [save_interval=5] [seed=0] [out=/tmp/kill_resume]
 
 Each round waits until the run has logged a randomly chosen iteration (plus a random fraction of
-a second, so kills also land inside collection, update and checkpoint writes), kills the whole
+that iteration's duration, so kills also land inside collection, update and checkpoint writes of the
+next one, however fast the iterations are), kills the whole
 process group with SIGKILL, checks that every ``model_<it>.pt`` loads and that the newest is at
 most ``save_interval`` iterations behind the last logged one, then continues with
 ``resume=RUN_DIR``. After the last kill the run trains to its end. Prints one line per kill and a
@@ -29,12 +30,19 @@ from mjnav.schema import ConfigError, split_args
 from mjnav.train.runner import checkpoints
 
 _LINE = re.compile(r"\] it (\d+)/\d+ ")
+_TIMES = re.compile(r"collect\s+([\d.]+)s .*\| update\s+([\d.]+)s")
 
 
 def _logged(log: Path) -> int:
     """Index of the last iteration the run has logged (-1 before the first)."""
     found = _LINE.findall(log.read_text(errors="replace")) if log.is_file() else []
     return int(found[-1]) - 1 if found else -1
+
+
+def _iteration_seconds(log: Path) -> float:
+    """Collection plus update time of the last logged iteration, seconds (0.1 if none is logged)."""
+    found = _TIMES.findall(log.read_text(errors="replace")) if log.is_file() else []
+    return sum(map(float, found[-1])) if found else 0.1
 
 
 def _start(argv: list[str], log: Path, python: str, cwd: Path) -> subprocess.Popen:
@@ -76,7 +84,7 @@ def run(kills: int, out: Path, rng: random.Random, iterations: int = 40, save_in
         done = _logged(log)
         target = rng.randint(max(done + 1, 0), max(done + 1, iterations - 2 - (kills - k)))
         _wait_for(proc, log, target)
-        time.sleep(rng.uniform(0.0, 1.0))
+        time.sleep(rng.uniform(0.0, 1.0) * _iteration_seconds(log))
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
         run_dir = run_dir or next(out.glob("stage1-*"))
