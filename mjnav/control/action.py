@@ -11,8 +11,8 @@ Everything here is in the robot frame (metres, radians, SI).
 * ``θ_s = 2π α_s + heading(v)`` (``heading='velocity'``, code) or ``2π α_s`` (``'absolute'``,
   paper), or ``2π α_s + direction(goal)`` (``'goal'``, not in the paper: see
   :class:`ActionConfig`); heading of a zero vector is 0. The ray from the robot at ``θ_s``
-  meets the boundary of polygon ∩ disc(R_s) at distance ``d_θ^s`` (exact: ``min`` of the exact ray/convex-polygon
-  distance and ``R_s``); ``Q_s = β_s d_θ^s (cos θ_s, sin θ_s)``.
+  meets the boundary of polygon ∩ disc(R_s) at distance ``d_θ^s`` (exact: ``min`` of the exact
+  ray/convex-polygon distance and ``R_s``); ``Q_s = β_s d_θ^s (cos θ_s, sin θ_s)``.
 * ``θ_l = θ_s + 2π α_l`` (= ``2π α_l`` + direction O→Q_s); from ``Q_s`` the ray meets
   polygon ∩ disc(O, R_l) at ``d_θ^l``; ``Q_l = Q_s + β_l d_θ^l (cos θ_l, sin θ_l)``.
   If ``Q_s`` is not inside disc(R_l) (impossible with the defaults), ``d_θ^l = 0``.
@@ -236,11 +236,10 @@ def heading_angle(mode: str, velocity: Sequence[float], goal_rel: Sequence[float
     Returns:
         The velocity heading, 0, or the goal direction; the heading of a zero vector is 0.
     """
-    if mode == "velocity":
-        return math.atan2(velocity[1], velocity[0])
-    if mode == "goal":
-        return math.atan2(goal_rel[1], goal_rel[0])
-    return 0.0
+    x, y = (velocity[0], velocity[1]) if mode == "velocity" else (goal_rel[0], goal_rel[1])
+    if mode == "absolute" or (x == 0.0 and y == 0.0):  # also -0.0, whose atan2 is ±π
+        return 0.0
+    return math.atan2(y, x)
 
 
 def radii(velocity: np.ndarray, acceleration: np.ndarray, config: ActionConfig) -> tuple[float, float]:

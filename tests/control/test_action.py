@@ -12,6 +12,7 @@ from mjnav.control.action import (
     ActionConfig,
     boundary_distance,
     goal_inside,
+    heading_angle,
     map_action,
     map_action_values,
     radii,
@@ -94,6 +95,15 @@ def test_goal_heading_measures_both_points_from_the_goal_direction():
     assert pts.theta_s == pytest.approx(-math.pi / 4)
     assert pts.theta_l == pytest.approx(3 * math.pi / 4)
     assert float(np.dot(pts.q_l - pts.q_s, goal)) > 0.0
+
+
+def test_heading_of_a_zero_vector_is_zero():
+    """heading_angle: 0 for a zero (or negative-zero) vector and for 'absolute', else the direction."""
+    assert heading_angle("velocity", [-0.0, -0.0], [1.0, 1.0]) == 0.0
+    assert heading_angle("goal", [1.0, 1.0], [0.0, -0.0]) == 0.0
+    assert heading_angle("absolute", [0.0, 1.0], [0.0, 1.0]) == 0.0
+    assert heading_angle("velocity", [0.0, 2.0], [1.0, 0.0]) == pytest.approx(math.pi / 2)
+    assert heading_angle("goal", [0.0, 2.0], [-1.0, 0.0]) == pytest.approx(math.pi)
 
 
 def test_goal_inside_overrides_only_the_mpc_reference():
