@@ -2,9 +2,12 @@
 
     python scripts/paper_tables.py table=2|3|4 [episodes=1000] [out=evals/paper] [workers=2]
                                    [seed_offset=0] [run=true] [action=mean|expected|sample]
+                                   [methods=Ours,TEB]
 
 Reads ``<out>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
 (``run=false``: report them as missing, or an unfinished one as "n of N" episodes so far) and prints the table in markdown.
+``methods`` keeps only the named methods (names as the table prints them), e.g. to re-run Ours
+after retraining it without touching the baselines' records.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ def main(argv: list[str]) -> int:
     from mjnav.eval.tables import TABLES, format_table, table_rows
 
     defaults = {"table": 2, "episodes": 1000, "out": "evals/paper", "workers": os.cpu_count() or 1,
-                "seed_offset": 0, "run": True, "action": "mean"}
+                "seed_offset": 0, "run": True, "action": "mean", "methods": ""}
     try:
         opts, extra = split_args(argv, defaults)
         if extra:
@@ -32,8 +35,9 @@ def main(argv: list[str]) -> int:
             raise ConfigError(f"action: expected one of {ACTION_MODES}, got {opts['action']!r}")
         if table not in TABLES:
             raise ConfigError(f"table: {table} is not available (known: {sorted(TABLES)})")
+        names = [n.strip() for n in str(opts["methods"]).split(",") if n.strip()] or None
         rows = table_rows(table, Path(str(opts["out"])), int(opts["episodes"]), int(opts["seed_offset"]),
-                          int(opts["workers"]), bool(opts["run"]), str(opts["action"]))
+                          int(opts["workers"]), bool(opts["run"]), str(opts["action"]), names)
     except (ConfigError, ValueError, FileNotFoundError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -131,8 +131,15 @@ def evaluation_path(out: Path, method: Method, stage: str, rule: str, action: st
 
 
 def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, workers: int = 2,
-               run_missing: bool = True, action: str = "mean") -> list[dict[str, Any]]:
+               run_missing: bool = True, action: str = "mean",
+               methods: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """One row per (stage, method): our numbers under both rules and the paper's.
+
+    ``methods``: only these methods (their names as in the table, e.g. ``("Ours",)``), for
+    re-running one method after retraining it; all when None.
+
+    Raises:
+        ValueError: A name in ``methods`` is not one of the table's.
 
     Evaluations missing from ``out`` (or made with other episodes, seeds, policy or action mode)
     are run when ``run_missing`` is set; otherwise that rule's entry holds what an unfinished run of it
@@ -142,9 +149,10 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     from mjnav.eval.policies import BASELINES, training_overrides
     from mjnav.eval.runner import EvalSpec, evaluate, settle_from_contact
 
+    chosen = _chosen_methods(TABLES[table], methods)
     rows = []
     for stage in TABLES[table].stages:
-        for method in TABLES[table].methods:
+        for method in chosen:
             baseline = method.policy in BASELINES
             mode = "mean" if baseline else action
             policy = method.policy if baseline else _policy_file(method.policy.format(stage=stage), mode)
@@ -174,6 +182,17 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                 row[rule] = _stats(found)
             rows.append({**row, "status": "ok"})
     return rows
+
+
+def _chosen_methods(table: Table, names: Sequence[str] | None) -> tuple[Method, ...]:
+    """The table's methods named in ``names`` (all for None), in the table's order."""
+    if names is None:
+        return table.methods
+    known = [m.name for m in table.methods]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ValueError(f"methods: {unknown} not in this table (known: {known})")
+    return tuple(m for m in table.methods if m.name in names)
 
 
 def _policy_file(policy: str, action: str) -> str:

@@ -29,6 +29,14 @@ def test_missing_policies_are_listed_as_not_trained(tmp_path: Path, monkeypatch:
     assert "not trained" in tables.format_table(rows)
 
 
+def test_methods_keeps_only_the_named_ones(tmp_path: Path) -> None:
+    """methods=("Ours",) gives Ours' rows only; an unknown name is a ValueError naming the known ones."""
+    rows = tables.table_rows(4, tmp_path, episodes=5, run_missing=False, methods=("Ours",))
+    assert {r["method"] for r in rows} == {"Ours"} and len(rows) == 3
+    with pytest.raises(ValueError, match="known"):
+        tables.table_rows(4, tmp_path, episodes=5, run_missing=False, methods=("PPO",))
+
+
 def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Matching JSONL files are summarised under both rules with the paper's number beside them."""
     policy = tmp_path / "stage2_policy.pt"
