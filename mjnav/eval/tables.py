@@ -138,13 +138,13 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     ``methods``: only these methods (their names as in the table, e.g. ``("Ours",)``), for
     re-running one method after retraining it; all when None.
 
-    Raises:
-        ValueError: A name in ``methods`` is not one of the table's.
-
     Evaluations missing from ``out`` (or made with other episodes, seeds, policy or action mode)
     are run when ``run_missing`` is set; otherwise that rule's entry holds what an unfinished run of it
     has so far (episodes 0 .. n-1, shown as "n of N") or None (shown as "–").
     Baselines (``teb``) have no action mode and always act as themselves.
+
+    Raises:
+        ValueError: A name in ``methods`` is not one of the table's.
     """
     from mjnav.eval.policies import BASELINES, training_overrides
     from mjnav.eval.runner import EvalSpec, evaluate, settle_from_contact
