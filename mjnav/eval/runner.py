@@ -477,7 +477,8 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
 def settle_from_contact(spec: EvalSpec, contact: str | Path, out_dir: str | Path, report: bool = True) -> int:
     """Write the episodes of paper's-rule ``spec`` that a contact run settles (:func:`seed_paper_rule`).
 
-    ``contact`` is the contact run's JSONL, or its folder (then ``<contact>/<task>.jsonl``). The output file is first brought to what :func:`evaluate` would resume from (records of another
+    ``contact`` is the contact run's JSONL, or its folder (then ``<contact>/<task>.jsonl``). The
+    output file is first brought to what :func:`evaluate` would resume from (records of another
     evaluation dropped), so settling twice, or into an interrupted run, never duplicates or mixes.
     Contact records of another commit, policy, seed range or overrides settle nothing (0, reported).
 

@@ -15,13 +15,14 @@ adds to the task's overrides.
 from __future__ import annotations
 
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 OVERRIDES = ["collision=scan", "region.margin=0.1"] + [
-    o for o in __import__("os").environ.get("IMIT_OVERRIDES", "").split(",") if o
+    o for o in os.environ.get("IMIT_OVERRIDES", "").split(",") if o
 ]
 A_S, B_S = 0.5, 0.3
 
@@ -124,7 +125,7 @@ def main(argv):
         act = torch.as_tensor(np.concatenate([d["act"] for d in data]))
         ckpt = torch.load(base, map_location="cpu", weights_only=False)
         net = build_actor(ckpt["actor_state_dict"], ("relu", "relu", "hardswish"))
-        epochs = int(__import__("os").environ.get("BC_EPOCHS", "30"))
+        epochs = int(os.environ.get("BC_EPOCHS", "30"))
         opt = torch.optim.Adam(net.parameters(), lr=1e-3)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
         torch.manual_seed(0)
