@@ -84,7 +84,7 @@ TABLES: dict[int, Table] = {
     3: Table(("stage5", "stage6", "stage7"), (
         Method("r_t1", "docs/policies/{stage}_policy.pt", "ours", _OURS_CROWD),
         # the ablation's own r_t1: trained by the same protocol and budget as r_t2-r_t4
-        Method("r_t1, ablation run", "docs/policies/stage7_r_t1.pt", "r_t1", _OURS_CROWD),
+        Method("r_t1 (ablation run)", "docs/policies/stage7_r_t1.pt", "r_t1", _OURS_CROWD),
         Method("r_t2", "docs/policies/stage7_r_t2.pt", "r_t2",
                {"stage5": (87.8, 2.9, 4.65, 1.57, 27600.56), "stage6": (77.3, 2.8, 4.10, 1.43, 20397.66),
                 "stage7": (69.9, 3.0, 4.15, 1.37, 7218.53)}),

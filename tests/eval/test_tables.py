@@ -37,6 +37,12 @@ def test_methods_keeps_only_the_named_ones(tmp_path: Path) -> None:
         tables.table_rows(4, tmp_path, episodes=5, run_missing=False, methods=("PPO",))
 
 
+def test_every_method_name_survives_the_comma_separated_option() -> None:
+    """paper_tables.py splits methods= at commas, so no method name may contain one."""
+    names = [m.name for table in tables.TABLES.values() for m in table.methods]
+    assert [n for n in names if "," in n or n != n.strip()] == []
+
+
 def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Matching JSONL files are summarised under both rules with the paper's number beside them."""
     policy = tmp_path / "stage2_policy.pt"
