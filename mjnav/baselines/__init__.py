@@ -1,7 +1,8 @@
 """Non-learned navigation baselines, each a :class:`mjnav.tasks.core.Planner`.
 
 ``mpc_goal`` (convex region + MPC towards the goal), ``mpc_gap`` (the same towards open space near
-the goal direction), ``teb`` (timed elastic band), ``dwa``
+the goal direction), ``mpc_crowd`` (the same steered by the pedestrians' true motion: privileged, an
+oracle), ``teb`` (timed elastic band), ``dwa``
 (dynamic window) and ``random_jerk`` (:class:`RandomPlanner`). Set ``env.task.planner`` to one
 and the task uses it instead of the learned action layer; the episode and its scoring stay the
 same. Pure numpy/scipy; every planner brakes (and counts it in ``stats``) instead of raising.
@@ -13,6 +14,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from mjnav.baselines.dwa import DwaConfig, DwaPlanner
+from mjnav.baselines.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
 from mjnav.baselines.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
 from mjnav.baselines.random import RandomActionPolicy, RandomPlanner
 from mjnav.baselines.teb import TebConfig, TebPlanner
@@ -23,6 +25,8 @@ __all__ = [
     "PLANNER_CONFIGS",
     "DwaConfig",
     "DwaPlanner",
+    "MpcCrowdConfig",
+    "MpcCrowdPlanner",
     "MpcGapConfig",
     "MpcGapPlanner",
     "MpcGoalPlanner",
@@ -41,6 +45,7 @@ if TYPE_CHECKING:
 PLANNERS: dict[str, Callable[[], Planner]] = {
     "mpc_goal": MpcGoalPlanner,
     "mpc_gap": MpcGapPlanner,
+    "mpc_crowd": MpcCrowdPlanner,
     "teb": TebPlanner,
     "dwa": DwaPlanner,
     "random_jerk": RandomPlanner,
@@ -48,7 +53,8 @@ PLANNERS: dict[str, Callable[[], Planner]] = {
 
 
 #: Parameter dataclass of each planner that takes ``planner.<field>=value`` overrides.
-PLANNER_CONFIGS: dict[str, type] = {"dwa": DwaConfig, "teb": TebConfig, "mpc_gap": MpcGapConfig}
+PLANNER_CONFIGS: dict[str, type] = {"dwa": DwaConfig, "teb": TebConfig, "mpc_gap": MpcGapConfig,
+                                    "mpc_crowd": MpcCrowdConfig}
 
 
 def planner_config(name: str, overrides: Sequence[str] = ()) -> object | None:

@@ -157,6 +157,10 @@ class MpcGoalPlanner:
         self.limits = Limits.from_task(config)
         self.debug = {}
 
+    def reference(self, inp: PlannerInput, goal: np.ndarray, r_s: float) -> tuple[np.ndarray, np.ndarray, bool]:
+        """``(Q_s, Q_l, goal_inside)`` for this step (robot frame, metres): :func:`reference_points`."""
+        return reference_points(inp.region, goal, r_s, self.safety, self.gap)
+
     def act(self, inp: PlannerInput) -> np.ndarray:
         """Jerk for the next control period, m/s³ (brakes and counts on a bad input)."""
         v = np.asarray(inp.velocity, dtype=np.float64)
@@ -167,7 +171,7 @@ class MpcGoalPlanner:
         try:
             r_s, _ = radii(v, a, self._action)
             goal = np.asarray(inp.goal) - inp.position
-            q_s, q_l, inside = reference_points(inp.region, goal, r_s, self.safety, self.gap)
+            q_s, q_l, inside = self.reference(inp, goal, r_s)
             result = self._mpc.solve(np.stack([np.zeros(2), v, a]), q_s, q_l, inp.region, inside)
         except (ValueError, FloatingPointError):
             self.stats["failures"] += 1

@@ -63,6 +63,9 @@ class PlannerInput:
         goal: Goal, world frame, metres.
         region: The free-space polygon of this scan (robot frame).
         time: Time since the episode start, seconds.
+        pedestrians: (P, 3) ``[x, y, r]`` of the pedestrians, world frame, metres: the simulator's
+            ground truth, which a robot does not have; only privileged planners (``mpc_crowd``)
+            read it.
     """
 
     scan: np.ndarray
@@ -73,6 +76,7 @@ class PlannerInput:
     goal: np.ndarray
     region: Region
     time: float
+    pedestrians: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
 
 
 class Planner(typing.Protocol):
@@ -317,10 +321,12 @@ class NavCore:
         )  # fmt: skip
 
     def plan_with(self, planner: Planner, scan: np.ndarray, position: np.ndarray, velocity: np.ndarray,
-                  accel: np.ndarray) -> np.ndarray:
-        """Jerk from a baseline planner (its action points are recorded as the robot position)."""
+                  accel: np.ndarray, pedestrians: np.ndarray | None = None) -> np.ndarray:
+        """Jerk from a baseline planner (its action points are recorded as the robot position);
+        ``pedestrians``: (P, 3) ground-truth ``[x, y, r]`` for privileged planners (none: empty)."""
+        peds = np.zeros((0, 3)) if pedestrians is None else pedestrians
         inp = PlannerInput(scan, self._angles, position.copy(), velocity.copy(), accel.copy(), self.goal.copy(),
-                           self.region, self.steps * self.config.timing.control_period)
+                           self.region, self.steps * self.config.timing.control_period, peds)
         jerk = np.asarray(planner.act(inp), dtype=np.float64).reshape(2)
         if not np.all(np.isfinite(jerk)):
             raise ValueError(f"planner {type(planner).__name__} returned a non-finite jerk {jerk!r}")

@@ -97,7 +97,7 @@ class CrowdNavTask(composer.Task):
         if self.planner is None:
             jerk = self.core.plan(action, p, v, a)
         else:
-            jerk = self.core.plan_with(self.planner, self._scan, p, v, a)
+            jerk = self.core.plan_with(self.planner, self._scan, p, v, a, self.sim.pedestrian_circles())
         self._t_physics = time.perf_counter()  # the command starts the period (crowd, tracking)
         self.sim.apply_command(physics, jerk, state)
 

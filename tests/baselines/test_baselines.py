@@ -12,7 +12,7 @@ from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import compute_region
 from mjnav.tasks.core import PlannerInput
 
-GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "teb", "dwa")
+GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "mpc_crowd", "teb", "dwa")
 
 
 @pytest.fixture(scope="module")
@@ -134,3 +134,52 @@ def test_mpc_gap_heads_for_open_space_near_the_goal_direction():
     for bad in ({"clearance_weight": -1.0}, {"clearance_cap": 0.0}, {"directions": 3}, {"safety": 1.5}):
         with pytest.raises(ConfigError):
             MpcGapConfig(**bad)
+
+
+def test_mpc_crowd_steps_aside_from_a_pedestrian_walking_at_it():
+    """With no crowd mpc_crowd's Q_l goes straight at the goal at full speed; a pedestrian 2 m ahead
+    walking towards the robot turns Q_l off the goal line, while one beside the line walking away
+    from it leaves Q_l there. Bad parameters are refused."""
+    from mjnav.baselines import MpcCrowdConfig
+    from mjnav.baselines.mpc_crowd import crowd_long_point
+    from mjnav.schema import ConfigError
+
+    angles = beam_angles(360)
+    region = compute_region(np.full(360, 8.0), angles)
+    goal, still, config = np.array([6.0, 0.0]), np.zeros(2), MpcCrowdConfig()
+    args = (0.325, 1.0, config)
+    q_l = crowd_long_point(region, goal, still, np.zeros((0, 3)), np.zeros((0, 2)), *args)
+    assert np.allclose(q_l, [max(config.speeds), 0.0])
+    ahead = np.array([[2.0, 0.0, 0.3]])
+    towards = crowd_long_point(region, goal, still, ahead, np.array([[-0.6, 0.0]]), *args)
+    aside = np.array([[2.0, 1.2, 0.3]])  # off the line and walking away from it
+    away = crowd_long_point(region, goal, still, aside, np.array([[0.0, 0.6]]), *args)
+    assert abs(np.arctan2(towards[1], towards[0])) > np.radians(20)
+    assert abs(away[1]) < 1e-9 and away[0] > 0.0
+    for bad in ({"margin": 0.0}, {"weight": -1.0}, {"samples": 1}, {"directions": 3}, {"speeds": ()},
+                {"safety": 0.0}):
+        with pytest.raises(ConfigError):
+            MpcCrowdConfig(**bad)
+
+
+def test_mpc_crowd_reads_the_ground_truth_crowd_and_differences_it():
+    """In a stage-5 episode the task hands mpc_crowd every pedestrian ([x, y, r], world frame); its
+    velocity estimate is the displacement over the control period, zero at first sight."""
+    from mjnav.envs.gym_env import NavGymEnv
+
+    env = NavGymEnv("stage5", seed=0)
+    planner = env.task.planner = make_planner("mpc_crowd")
+    seen = []
+    act = planner.act
+    planner.act = lambda inp: (seen.append(inp.pedestrians.copy()), act(inp))[1]
+    env.reset(options={"episode_seed": 3})
+    for _ in range(3):
+        env.step(np.zeros(4, np.float32))
+    env.close()
+    assert [p.shape for p in seen] == [(10, 3)] * 3
+    assert np.all((seen[0][:, 2] >= 0.1) & (seen[0][:, 2] <= 0.4))
+    speeds = np.hypot(*planner._ped_velocities.T)
+    assert np.allclose(planner._ped_velocities, (seen[2][:, :2] - seen[1][:, :2]) / 0.1)
+    assert np.all((speeds > 0.2) & (speeds < 0.7))
+    planner.reset(load_task("stage5"), np.random.default_rng(0))
+    assert np.allclose(planner._track(0.0, seen[0][:, :2]), 0.0)
