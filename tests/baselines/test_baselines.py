@@ -160,6 +160,12 @@ def test_mpc_crowd_steps_aside_from_a_pedestrian_walking_at_it():
                 {"safety": 0.0}):
         with pytest.raises(ConfigError):
             MpcCrowdConfig(**bad)
+    from mjnav.baselines import planner_config
+
+    assert planner_config("mpc_crowd", ["speeds=[1.0, 2.0]", "margin=0.5"]).speeds == (1.0, 2.0)
+    for bad in ("speeds=3", "speeds=[1.0, -2.0]", "speeds=[]"):
+        with pytest.raises(ConfigError):
+            planner_config("mpc_crowd", [bad])
 
 
 def test_mpc_crowd_reads_the_ground_truth_crowd_and_differences_it():
