@@ -37,7 +37,7 @@ import numpy as np
 from mjnav.baselines.mpc_goal import MpcGoalPlanner
 from mjnav.control.action import boundary_distance, goal_inside
 
-__all__ = ["MpcCrowdConfig", "MpcCrowdPlanner", "crowd_long_point"]
+__all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "crowd_long_point"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
@@ -157,11 +157,35 @@ def crowd_long_point(region: Region, goal: np.ndarray, velocity: np.ndarray, ped
     return candidates[best] / speeds[best] * min(float(reach[best]), dist)
 
 
+class CrowdTracker:
+    """Pedestrian velocities from positions seen one control step apart (zeros at first sight)."""
+
+    def __init__(self) -> None:
+        """An empty tracker: the first positions it sees get zero velocities."""
+        self._seen: tuple[float, np.ndarray] | None = None  # (time, positions) at the last update
+        self.velocities = np.zeros((0, 2))
+
+    def reset(self) -> None:
+        """Forget the crowd seen so far (a new episode)."""
+        self._seen = None
+        self.velocities = np.zeros((0, 2))
+
+    def update(self, time: float, positions: np.ndarray) -> np.ndarray:
+        """Velocities (P, 2), m/s, of ``positions`` (P, 2) at ``time`` (s); calling twice at the same
+        time keeps the estimate, a changed count starts again from zeros."""
+        seen = self._seen
+        if seen is None or seen[1].shape != positions.shape:
+            self.velocities = np.zeros_like(positions)
+        elif time > seen[0] + 1e-9:
+            self.velocities = (positions - seen[1]) / (time - seen[0])
+        else:
+            return self.velocities
+        self._seen = (time, positions.copy())
+        return self.velocities
+
+
 class MpcCrowdPlanner(MpcGoalPlanner):
     """Region + MPC with ``Q_l`` from the crowd's true motion (``mpc_crowd``, privileged)."""
-
-    #: Reads the simulator's ground truth (PlannerInput.pedestrians), which a robot does not have.
-    privileged = True
 
     def __init__(self, config: MpcCrowdConfig | None = None) -> None:
         """``config``: :class:`MpcCrowdConfig` (defaults when None)."""
@@ -169,31 +193,19 @@ class MpcCrowdPlanner(MpcGoalPlanner):
         super().__init__(self.config.safety)
         self._inflation = 0.325
         self._reach_time = 1.0
-        self._seen: tuple[float, np.ndarray] | None = None  # (time, positions) at the last call
-        self._ped_velocities = np.zeros((0, 2))
+        self.tracker = CrowdTracker()
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
         """Start an episode: forget the crowd seen so far (``rng`` unused: deterministic)."""
         super().reset(config, rng)
         self._inflation = config.region.inflation
         self._reach_time = config.mpc.horizon * config.timing.control_period
-        self._seen = None
-        self._ped_velocities = np.zeros((0, 2))
-
-    def _track(self, time: float, positions: np.ndarray) -> np.ndarray:
-        """Pedestrian velocities (m/s) from the positions one call apart (zeros at first sight)."""
-        seen = self._seen
-        if seen is None or seen[1].shape != positions.shape:
-            self._ped_velocities = np.zeros_like(positions)
-        elif time > seen[0] + 1e-9:
-            self._ped_velocities = (positions - seen[1]) / (time - seen[0])
-        self._seen = (time, positions.copy())
-        return self._ped_velocities
+        self.tracker.reset()
 
     def reference(self, inp: PlannerInput, goal: np.ndarray, r_s: float) -> tuple[np.ndarray, np.ndarray, bool]:
         """``(Q_s, Q_l, goal_inside)`` from the crowd's motion (robot frame, metres)."""
         peds = np.asarray(inp.pedestrians, dtype=np.float64).reshape(-1, 3)
-        ped_velocities = self._track(inp.time, peds[:, :2])
+        ped_velocities = self.tracker.update(inp.time, peds[:, :2])
         inside = goal_inside(inp.region, goal)
         if inside:
             q_l = goal.copy()

@@ -184,8 +184,8 @@ def test_mpc_crowd_reads_the_ground_truth_crowd_and_differences_it():
     env.close()
     assert [p.shape for p in seen] == [(10, 3)] * 3
     assert np.all((seen[0][:, 2] >= 0.1) & (seen[0][:, 2] <= 0.4))
-    speeds = np.hypot(*planner._ped_velocities.T)
-    assert np.allclose(planner._ped_velocities, (seen[2][:, :2] - seen[1][:, :2]) / 0.1)
+    speeds = np.hypot(*planner.tracker.velocities.T)
+    assert np.allclose(planner.tracker.velocities, (seen[2][:, :2] - seen[1][:, :2]) / 0.1)
     assert np.all((speeds > 0.2) & (speeds < 0.7))
     planner.reset(load_task("stage5"), np.random.default_rng(0))
-    assert np.allclose(planner._track(0.0, seen[0][:, :2]), 0.0)
+    assert np.allclose(planner.tracker.update(0.0, seen[0][:, :2]), 0.0)

@@ -34,7 +34,7 @@ def teacher_index(env):
     rel = np.column_stack([c[:, :2] - p, c[:, 2]])
     dist = float(np.hypot(*goal))
     reach = np.minimum(SPEEDS * 1.0, CFG.safety * mc._free_distances(t.core.region, CAND, SPEEDS))
-    clear = mc._clearance(CAND, v, rel, im._PREV["vel"], im.R_INF, CFG)
+    clear = mc._clearance(CAND, v, rel, im._PREV["tracker"].velocities, im.R_INF, CFG)
     danger = np.maximum(0.0, CFG.margin - clear) / CFG.margin
     score = CAND @ (goal / max(dist, 1e-9)) / max(CFG.speeds) - CFG.weight * danger - 0.5 * (reach < 0.5 * SPEEDS)
     best = int(np.argmax(score))

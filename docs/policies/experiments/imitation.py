@@ -45,20 +45,18 @@ def logit(x):
 def crowd_q_l(env, p, goal):
     """Privileged teacher: mjnav's ``mpc_crowd`` choice of Q_l (robot frame) from the pedestrians'
     true positions, their velocities differenced over the control period."""
-    from mjnav.baselines.mpc_crowd import MpcCrowdConfig, crowd_long_point
+    from mjnav.baselines.mpc_crowd import CrowdTracker, MpcCrowdConfig, crowd_long_point
 
     task = env.task
     circles = task.sim.pedestrian_circles()
-    now = circles[:, :2]
-    key, time = (id(env), task.episode_seed), float(env._env.physics.data.time)
+    key = (id(env), task.episode_seed)
     if _PREV.get("key") != key:  # a new episode: no motion seen yet
-        _PREV.update(key=key, time=time, pos=now.copy(), vel=np.zeros_like(now))
-    elif time > _PREV["time"] + 1e-9:  # one estimate per control step, however often called
-        _PREV.update(time=time, vel=(now - _PREV["pos"]) / (time - _PREV["time"]), pos=now.copy())
+        _PREV.update(key=key, tracker=CrowdTracker())
+    velocities = _PREV["tracker"].update(float(env._env.physics.data.time), circles[:, :2])
     v = task.sim.robot_state(env._env.physics)[1][:2]
-    relative = np.column_stack([now - p[:2], circles[:, 2]])
+    relative = np.column_stack([circles[:, :2] - p[:2], circles[:, 2]])
     config = MpcCrowdConfig(**VO)
-    return crowd_long_point(task.core.region, goal, v, relative, _PREV["vel"], R_INF, 1.0, config)
+    return crowd_long_point(task.core.region, goal, v, relative, velocities, R_INF, 1.0, config)
 
 
 def teacher_action(env) -> np.ndarray:
