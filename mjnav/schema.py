@@ -359,15 +359,21 @@ class ObservationConfig:
             direction at its own step. With ``goal`` the same scene seen from another direction
             gives the same observation, so the network need not compose the goal direction from
             the world-frame polar angles, velocity and dθ; pair it with ``action.heading='goal'``.
+        critic_pedestrians: Privileged inputs of an asymmetric critic (training only; not in the
+            paper): the K nearest pedestrians' true positions, velocities and radii
+            (:mod:`mjnav.tasks.privileged`), reported as ``info["critic"]`` and given to the critic,
+            never to the actor. 0: off (the paper's critic sees the actor's observation).
     """
 
     frames: int = 3
     angle: Literal["mpc", "velocity"] = "mpc"
     frame_stride: int = 1
     frame: Literal["world", "goal"] = "world"
+    critic_pedestrians: int = 0
 
     def __post_init__(self) -> None:
         check(self.frames >= 1, "frames", "must be >= 1")
+        check(self.critic_pedestrians >= 0, "critic_pedestrians", "must be >= 0")
         check(self.frame_stride >= 1, "frame_stride", "must be >= 1")
         check(self.frame in ("world", "goal"), "frame", "must be 'world' or 'goal'")
 

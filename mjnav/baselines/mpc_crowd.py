@@ -36,6 +36,7 @@ import numpy as np
 
 from mjnav.baselines.mpc_goal import MpcGoalPlanner
 from mjnav.control.action import boundary_distance, goal_inside
+from mjnav.tasks.privileged import CrowdTracker
 
 __all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "crowd_long_point"]
 
@@ -155,33 +156,6 @@ def crowd_long_point(region: Region, goal: np.ndarray, velocity: np.ndarray, ped
     if best == 0 or dist < 1e-9:
         return np.zeros(2)
     return candidates[best] / speeds[best] * min(float(reach[best]), dist)
-
-
-class CrowdTracker:
-    """Pedestrian velocities from positions seen one control step apart (zeros at first sight)."""
-
-    def __init__(self) -> None:
-        """An empty tracker: the first positions it sees get zero velocities."""
-        self._seen: tuple[float, np.ndarray] | None = None  # (time, positions) at the last update
-        self.velocities = np.zeros((0, 2))
-
-    def reset(self) -> None:
-        """Forget the crowd seen so far (a new episode)."""
-        self._seen = None
-        self.velocities = np.zeros((0, 2))
-
-    def update(self, time: float, positions: np.ndarray) -> np.ndarray:
-        """Velocities (P, 2), m/s, of ``positions`` (P, 2) at ``time`` (s); calling twice at the same
-        time keeps the estimate, a changed count starts again from zeros."""
-        seen = self._seen
-        if seen is None or seen[1].shape != positions.shape:
-            self.velocities = np.zeros_like(positions)
-        elif time > seen[0] + 1e-9:
-            self.velocities = (positions - seen[1]) / (time - seen[0])
-        else:
-            return self.velocities
-        self._seen = (time, positions.copy())
-        return self.velocities
 
 
 class MpcCrowdPlanner(MpcGoalPlanner):

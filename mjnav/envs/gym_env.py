@@ -41,6 +41,7 @@ import numpy as np
 
 from mjnav.config import TaskConfig
 from mjnav.envs.factory import make_env, resolve_config
+from mjnav.tasks.privileged import critic_size
 
 __all__ = ["NavGymEnv", "make_gym_env", "make_registered"]
 
@@ -104,6 +105,7 @@ class NavGymEnv(gym.Env):
         size = self.task.core.observation_size
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (size,), np.float32)
         self.action_space = gym.spaces.Box(-np.inf, np.inf, (self.task.core.design.action_size,), np.float32)
+        self.critic_size = critic_size(self.config.observation.critic_pedestrians)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": round(1.0 / self.config.timing.control_period)}
 
@@ -161,13 +163,16 @@ class NavGymEnv(gym.Env):
             mpc["plan_region_success"] = float(record.region_ok)  # the region that plan used
             if self._timing_info:
                 mpc["solve_time_ms"] = 1e3 * record.solve_time_s
-        return {
+        info = {
             "outcome": self.task.outcome.value,
             "reward_terms": dict(self.task.terms),
             "mpc": mpc,
             "episode_seed": self.task.episode_seed,
             "collision_kind": self.task.contact_kind,
         }
+        if self.critic_size:
+            info["critic"] = self.task.critic_observation
+        return info
 
     def render(self) -> np.ndarray | None:
         """An RGB frame (height, width, 3) uint8 of the current state with ``render_mode="rgb_array"``

@@ -58,6 +58,8 @@ class NavVecEnv(VecEnv):
     Attributes:
         num_envs: Number of environments.
         num_actions: Action dimension.
+        critic_dim: Length of the privileged critic inputs (``info["critic"]``, the envs'
+            ``critic_size``; 0: none, and observations hold the ``policy`` group only).
         max_episode_length: Control steps before the adapter truncates an episode.
         episode_length_buf: Steps of each running episode (``long``, on ``device``); the runner may
             overwrite it (e.g. random initial lengths) and truncation honours the new values.
@@ -142,7 +144,7 @@ class NavVecEnv(VecEnv):
             self._handles.append(_LocalHandle(env_fn, blocks[0], self.seed))
         described = [h.result(timeout) for h in self._handles]
         self._check_spaces(described, limit)
-        layout, nbytes = _layout(self.num_envs, self.observation_space.shape[0], self.num_actions)
+        layout, nbytes = _layout(self.num_envs, self.observation_space.shape[0], self.num_actions, self.critic_dim)
         if remote:
             self._shm = SharedMemory(create=True, size=nbytes)
             self._buf = _views(self._shm.buf, layout)
@@ -156,10 +158,13 @@ class NavVecEnv(VecEnv):
         self.reset()
 
     def _check_spaces(self, described: list[tuple], limit: int | None) -> None:
-        obs_space, act_space, env_limit = described[0]
+        obs_space, act_space, env_limit, critic_dim = described[0]
         for other in described[1:]:
-            if other[0].shape != obs_space.shape or other[1].shape != act_space.shape:
-                raise ValueError(f"environments disagree on spaces: {obs_space} / {act_space} vs {other[:2]}")
+            if other[0].shape != obs_space.shape or other[1].shape != act_space.shape or other[3] != critic_dim:
+                raise ValueError(
+                    f"environments disagree on spaces: {obs_space} / {act_space} / critic {critic_dim} vs "
+                    f"{other[0]} / {other[1]} / critic {other[3]}"
+                )
         if len(obs_space.shape) != 1 or len(act_space.shape) != 1:
             raise ValueError(f"expected flat Box spaces, got {obs_space} and {act_space}")
         limit = limit if limit is not None else env_limit
@@ -167,6 +172,7 @@ class NavVecEnv(VecEnv):
             raise ValueError("max_episode_length not given and the env has no spec.max_episode_steps")
         self.observation_space, self.action_space = obs_space, act_space
         self.num_actions = int(act_space.shape[0])
+        self.critic_dim = int(critic_dim)
         self.max_episode_length = int(limit)
 
     def _call(self, command: str, arg: Any = None) -> list[Any]:
@@ -196,12 +202,21 @@ class NavVecEnv(VecEnv):
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self._returns = np.zeros(self.num_envs)
         self._steps = np.zeros(self.num_envs, dtype=np.int64)
-        self._obs = torch.from_numpy(self._buf["obs"].copy()).to(self.device)
+        self._read_observations()
         return self.get_observations()
 
+    def _read_observations(self) -> None:
+        self._obs = torch.from_numpy(self._buf["obs"].copy()).to(self.device)
+        if self.critic_dim:
+            self._critic = torch.from_numpy(self._buf["critic"].copy()).to(self.device)
+
     def get_observations(self) -> TensorDict:
-        """Current observations as ``TensorDict(policy=(N, obs_dim))``; never resets."""
-        return TensorDict({"policy": self._obs.clone()}, batch_size=[self.num_envs], device=self.device)
+        """Current observations as ``TensorDict(policy=(N, obs_dim))``, plus ``critic=(N, critic_dim)``
+        when the environments report privileged critic inputs (``critic_dim`` > 0); never resets."""
+        groups = {"policy": self._obs.clone()}
+        if self.critic_dim:
+            groups["critic"] = self._critic.clone()
+        return TensorDict(groups, batch_size=[self.num_envs], device=self.device)
 
     def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
         """Step every environment; finished ones are reset and report the new episode's observation.
@@ -226,7 +241,7 @@ class NavVecEnv(VecEnv):
         rewards, outcome = buf["rewards"].copy(), buf["outcome"].copy()
         terminated, truncated = buf["terminated"].copy(), buf["truncated"].copy()
         done = terminated | truncated
-        self._obs = torch.from_numpy(buf["obs"].copy()).to(self.device)
+        self._read_observations()
         self._returns += rewards
         self._steps += 1
         log = self._log(done, outcome, replies)

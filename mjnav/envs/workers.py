@@ -37,11 +37,12 @@ class EnvError(RuntimeError):
     """An environment or worker failed; the message carries the original traceback."""
 
 
-def _layout(num_envs: int, obs_dim: int, act_dim: int) -> tuple[dict[str, tuple], int]:
+def _layout(num_envs: int, obs_dim: int, act_dim: int, critic_dim: int = 0) -> tuple[dict[str, tuple], int]:
     """Byte offsets (64-aligned), dtypes and shapes of the shared buffers, and the total size."""
     n = num_envs
     specs = {
         "obs": (np.float32, (n, obs_dim)),
+        "critic": (np.float32, (n, critic_dim)),
         "actions": (np.float32, (n, act_dim)),
         "rewards": (np.float32, (n,)),
         "terminated": (np.bool_, (n,)),
@@ -71,16 +72,26 @@ class _EnvGroup:
         self.buf: dict[str, np.ndarray] = {}
         self._seeded = False
 
-    def describe(self) -> tuple[gym.Space, gym.Space, int | None]:
-        """Spaces and step limit of the first environment."""
+    def describe(self) -> tuple[gym.Space, gym.Space, int | None, int]:
+        """Spaces, step limit and privileged critic size (``critic_size``, 0 without) of the first environment."""
         env = self.envs[0]
-        return env.observation_space, env.action_space, env.spec.max_episode_steps if env.spec else None
+        limit = env.spec.max_episode_steps if env.spec else None
+        return env.observation_space, env.action_space, limit, int(getattr(env, "critic_size", 0))
+
+    def _store_critic(self, i: int, info: dict) -> None:
+        """Copy environment ``i``'s ``info["critic"]`` into the shared buffer (when the buffer has one)."""
+        critic = self.buf["critic"]
+        if critic.shape[1]:
+            if "critic" not in info:
+                raise KeyError(f"critic_size is {critic.shape[1]} but info has no 'critic' entry")
+            critic[i] = info["critic"]
 
     def reset(self) -> None:
         """Reset every environment (seeded with ``seed + index`` the first time)."""
         for i, env in zip(self.indices, self.envs, strict=True):
             try:
-                self.buf["obs"][i], _ = env.reset(seed=None if self._seeded else self.seed + i)
+                self.buf["obs"][i], info = env.reset(seed=None if self._seeded else self.seed + i)
+                self._store_critic(i, info)
             except Exception as exc:
                 _blame(exc, i)
                 raise
@@ -111,7 +122,8 @@ class _EnvGroup:
                 truncated = (bool(truncated) or bool(force[i])) and not terminated
                 outcomes[i] = _outcome_code(info, terminated, truncated)
                 if terminated or truncated:
-                    obs, _ = env.reset()
+                    obs, info = env.reset()
+                self._store_critic(i, info)
                 observations[i], rewards[i] = obs, reward
                 terminated_buf[i], truncated_buf[i] = terminated, truncated
             except Exception as exc:

@@ -10,6 +10,7 @@ Stages differ only by their :class:`mjnav.config.TaskConfig`.
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -19,6 +20,7 @@ from dm_env import specs
 
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
+from mjnav.tasks.privileged import CrowdTracker, critic_size, pedestrian_features
 
 __all__ = ["TRAINING_SEED_LIMIT", "CrowdNavTask"]
 
@@ -36,6 +38,8 @@ class CrowdNavTask(composer.Task):
         self.core = NavCore(config)
         self.set_timesteps(config.timing.control_period, config.timing.physics_timestep)
         self._obs = np.zeros(self.core.observation_size, dtype=np.float32)
+        self._critic = np.zeros(critic_size(config.observation.critic_pedestrians), dtype=np.float32)
+        self._tracker = CrowdTracker()
         self._reward = 0.0
         self.terms: dict[str, float] = {}
         self.next_episode_seed: int | None = None
@@ -84,6 +88,8 @@ class CrowdNavTask(composer.Task):
         p, v, _ = self.sim.robot_state(physics)
         scan = self._scan = self.sim.scan(physics, self.rng)
         self._obs[:] = self.core.reset(self.layout.goal, p, v, scan)
+        self._tracker.reset()
+        self._observe_crowd(physics, p)
         if self.planner is not None:
             self.planner.reset(self.config, np.random.default_rng([seed, 1]))  # own stream: scenario stays paired
         self._reward = 0.0
@@ -129,6 +135,20 @@ class CrowdNavTask(composer.Task):
         contact, self.contact_kind = self.sim.robot_in_collision(physics)
         obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact)
         self._obs[:] = obs
+        self._observe_crowd(physics, p)
+
+    def _observe_crowd(self, physics, position: np.ndarray) -> None:
+        """Refresh the privileged critic input (``observation.critic_pedestrians`` > 0)."""
+        count = self.config.observation.critic_pedestrians
+        if not count:
+            return
+        circles = self.sim.pedestrian_circles()
+        velocities = self._tracker.update(float(physics.data.time), circles[:, :2])
+        rotation = 0.0
+        if self.config.observation.frame == "goal":
+            goal = self.layout.goal
+            rotation = math.atan2(goal[1] - position[1], goal[0] - position[0])
+        self._critic[:] = pedestrian_features(position, circles, velocities, count, rotation)
 
     # ------------------------------------------------------------------ scoring
     @property
@@ -140,6 +160,11 @@ class CrowdNavTask(composer.Task):
     def observation(self) -> np.ndarray:
         """The current observation (spec §6, float32), a copy."""
         return self._obs.copy()
+
+    @property
+    def critic_observation(self) -> np.ndarray:
+        """The privileged critic input (:mod:`mjnav.tasks.privileged`; empty when off), a copy."""
+        return self._critic.copy()
 
     def get_reward(self, physics) -> float:
         """Σ weight·term of the last step (spec §7)."""

@@ -107,13 +107,14 @@ def make_vec_env(
     )
 
 
-def rsl_config(train: TrainConfig, label: str = "") -> dict[str, Any]:
-    """The ``OnPolicyRunner`` configuration dictionary of ``train``."""
+def rsl_config(train: TrainConfig, label: str = "", privileged_critic: bool = False) -> dict[str, Any]:
+    """The ``OnPolicyRunner`` configuration dictionary of ``train``; with ``privileged_critic`` the
+    critic reads the adapter's ``critic`` group after the actor's ``policy`` group."""
     policy = train.policy
     return {
         "num_steps_per_env": train.steps_per_env,
         "save_interval": train.save_interval,
-        "obs_groups": {"actor": ["policy"], "critic": ["policy"]},
+        "obs_groups": {"actor": ["policy"], "critic": ["policy", "critic"] if privileged_critic else ["policy"]},
         "check_for_nan": True,
         "run_name": label,
         "logger": {
@@ -168,7 +169,10 @@ def build_runner(
         torch.set_num_threads(train.torch_threads)
     with contextlib.redirect_stdout(_ModelPrintFilter(sys.stdout, train.verbose)):
         runner = OnPolicyRunner(
-            env, rsl_config(train, label), None if log_dir is None else str(log_dir), train.device
+            env,
+            rsl_config(train, label, privileged_critic=getattr(env, "critic_dim", 0) > 0),
+            None if log_dir is None else str(log_dir),
+            train.device,
         )
     runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
     _thread_the_update(runner, train.update_threads or usable_cores())
@@ -274,19 +278,28 @@ def checkpoints(run_dir: str | Path) -> list[Path]:
     return [p for _, p in sorted(found)]
 
 
-def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool = False) -> None:
+def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool = False) -> bool:
     """Load a checkpoint: everything (resume: iteration counting continues) or only the networks.
 
     Args:
         runner: The runner to load into.
         path: A ``model_<it>.pt`` checkpoint.
         weights_only: Load actor and critic weights only (``init=``: start a new stage from them).
+            A critic whose shapes differ from the runner's (another critic input, e.g.
+            ``observation.critic_pedestrians``) is not loaded: the run keeps its fresh critic.
+
+    Returns:
+        Whether the critic was loaded (always True without ``weights_only``).
     """
     if weights_only:
-        runner.load(str(path), load_cfg={"actor": True, "critic": True}, map_location=runner.device)
-        return
+        saved = torch.load(str(path), map_location="cpu", weights_only=False).get("critic_state_dict", {})
+        own = getattr(runner.alg, "_raw_critic", runner.alg.critic).state_dict()
+        critic = {k: tuple(v.shape) for k, v in saved.items()} == {k: tuple(v.shape) for k, v in own.items()}
+        runner.load(str(path), load_cfg={"actor": True, "critic": critic}, map_location=runner.device)
+        return critic
     runner.load(str(path), map_location=runner.device)
     runner.current_learning_iteration += 1
+    return True
 
 
 def save_checkpoint(runner: OnPolicyRunner, run_dir: str | Path) -> Path:

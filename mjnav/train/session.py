@@ -359,11 +359,15 @@ def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Pat
         runner = build_runner(
             env, train, plan.run_dir, label=plan.task.name if plan.curriculum is None else "curriculum"
         )
+        critic_loaded = True
         if plan.checkpoint is not None:
             load_checkpoint(runner, plan.checkpoint)
         elif plan.init is not None:
-            load_checkpoint(runner, plan.init, weights_only=True)
+            critic_loaded = load_checkpoint(runner, plan.init, weights_only=True)
         _print_header(plan, env, runner.current_learning_iteration)
+        if not critic_loaded:
+            print(f"critic: not taken from {plan.init} (its inputs differ); a new critic starts, "
+                  f"train.critic_warmup={train.critic_warmup} updates with the actor frozen", flush=True)
         if not _train(runner, plan, make_env):
             return plan.run_dir
         for path in export_actor(runner.alg.get_policy(), plan.run_dir):
@@ -421,6 +425,7 @@ def _print_header(plan: RunPlan, env: Any, start: int) -> None:
         f"run {plan.run_dir} | task {plan.task.name} | {t.num_envs} envs x {t.steps_per_env} steps = {batch} "
         f"transitions/iteration | {t.epochs} epochs x {t.minibatches} minibatches of "
         f"{batch // t.minibatches} | "
-        f"workers {env.workers} | device {t.device} | iterations {start}->{t.iterations}",
+        f"workers {env.workers} | device {t.device} | iterations {start}->{t.iterations}"
+        + (f" | critic: +{env.critic_dim} privileged inputs" if getattr(env, "critic_dim", 0) else ""),
         flush=True,
     )

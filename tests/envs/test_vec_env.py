@@ -25,9 +25,11 @@ class FakeNavEnv(gym.Env):
 
     def __init__(
         self, limit: int = 20, fail_step: int | None = None, die: bool = False, noise: float = 0.05,
-        delay_s: float = 0.0,
+        delay_s: float = 0.0, critic: int = 0, critic_info: bool = True,
     ) -> None:
-        """Spaces as the real env; ``spec.max_episode_steps`` = ``limit``; each step sleeps ``delay_s``."""
+        """Spaces as the real env; ``spec.max_episode_steps`` = ``limit``; each step sleeps ``delay_s``;
+        ``critic`` > 0 reports that many privileged values ``[t, x, y, ...]`` (unless not ``critic_info``)."""
+        self.critic_size, self.critic_info = critic, critic_info
         self.spec = gym.envs.registration.EnvSpec("FakeNav-v0", max_episode_steps=limit)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (OBS_DIM,), np.float32)
         self.action_space = gym.spaces.Box(-np.inf, np.inf, (ACT_DIM,), np.float32)
@@ -50,7 +52,12 @@ class FakeNavEnv(gym.Env):
         angle, radius = self.np_random.uniform(-np.pi, np.pi), self.np_random.uniform(1.0, 2.0)
         self._pos = radius * np.array([np.cos(angle), np.sin(angle)])
         self._t = 0
-        return self._obs(), {"outcome": "running", "episode_seed": 0}
+        return self._obs(), self._with_critic({"outcome": "running", "episode_seed": 0})
+
+    def _with_critic(self, info: dict) -> dict:
+        if self.critic_size and self.critic_info:
+            info["critic"] = np.resize(np.array([self._t, *self._pos], np.float32), self.critic_size)
+        return info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Move by the squashed action (plus noise); fail on request."""
@@ -76,7 +83,8 @@ class FakeNavEnv(gym.Env):
             "episode_seed": 0,
             "mpc": {"solve_time_ms": 1.0 + dist, "fallback": 0.0},
         }
-        return self._obs(), float(sum(terms.values())), outcome in ("success", "collision"), truncated, info
+        done = outcome in ("success", "collision")
+        return self._obs(), float(sum(terms.values())), done, truncated, self._with_critic(info)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,6 +101,8 @@ class FakeFactory:
     noise: float = 0.05
     slow_env: int | None = None
     delay_s: float = 0.0
+    critic: int = 0
+    critic_info: bool = True
 
     def __call__(self, index: int) -> FakeNavEnv:
         """Build env ``index``."""
@@ -100,7 +110,8 @@ class FakeFactory:
         if failing and self.fail_step == 0:
             raise ValueError(f"fake env {index} refused to build")
         delay = self.delay_s if index == self.slow_env else 0.0
-        return FakeNavEnv(self.limit, self.fail_step if failing else None, self.die, self.noise, delay)
+        return FakeNavEnv(self.limit, self.fail_step if failing else None, self.die, self.noise, delay,
+                          self.critic, self.critic_info)
 
 
 def _rollout(env: NavVecEnv, steps: int, seed: int = 0) -> list[tuple]:
@@ -136,6 +147,29 @@ def test_shapes_and_dtypes(workers: dict) -> None:
         assert obs["policy"].shape == (4, OBS_DIM) and rew.shape == (4,) and rew.dtype == torch.float32
         assert dones.shape == (4,) and dones.dtype == torch.long
         assert extras["time_outs"].shape == (4,) and extras["time_outs"].dtype == torch.bool
+
+
+def test_privileged_critic_group(workers: dict) -> None:
+    """Envs with ``critic_size`` > 0 add a ``critic`` group; after an auto-reset it is the new episode's."""
+    with NavVecEnv(FakeFactory(limit=3), num_envs=4, seed=1, **workers) as env:
+        assert env.critic_dim == 0 and list(env.get_observations().keys()) == ["policy"]
+    with NavVecEnv(FakeFactory(limit=3, critic=5), num_envs=4, seed=1, **workers) as env:
+        assert env.critic_dim == 5
+        obs = env.get_observations()
+        assert obs["critic"].shape == (4, 5) and obs["critic"].dtype == torch.float32
+        assert not obs["critic"][:, 0].any()  # t = 0
+        for step in (1, 2, 3):
+            obs, _, dones, _ = env.step(torch.zeros(4, ACT_DIM))
+            expected = torch.where(dones.bool(), 0.0, float(step))
+            torch.testing.assert_close(obs["critic"][:, 0], expected)
+            torch.testing.assert_close(obs["critic"][:, 1:3], obs["policy"][:, :2])
+        assert dones.all()  # the limit: every env reset, its critic row from the new episode
+
+
+def test_missing_critic_info_is_a_clear_error() -> None:
+    """An env that declares ``critic_size`` but reports no ``info['critic']`` fails naming the entry."""
+    with pytest.raises(EnvError, match="info has no 'critic' entry"):
+        NavVecEnv(FakeFactory(critic=3, critic_info=False), num_envs=2, seed=1, workers=0)
 
 
 def test_get_observations_never_resets() -> None:

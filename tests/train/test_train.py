@@ -217,6 +217,44 @@ def test_init_loads_weights_only(tiny: TrainConfig, tmp_path: Path) -> None:
     assert not runner.alg.optimizer.state_dict()["state"], "optimizer state starts fresh"
 
 
+class PrivilegedFakeNavEnv(FakeNavEnv):
+    """The fake env with a 2-value privileged critic input (its true position)."""
+
+    critic_size = 2
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """As the fake env, plus ``info['critic']``."""
+        obs, info = super().reset(seed=seed, options=options)
+        return obs, {**info, "critic": self._pos.astype(np.float32)}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """As the fake env, plus ``info['critic']``."""
+        *out, info = super().step(action)
+        return (*out, {**info, "critic": self._pos.astype(np.float32)})
+
+
+def privileged_env_fn(index: int) -> PrivilegedFakeNavEnv:
+    """Picklable factory of the privileged fake env."""
+    return PrivilegedFakeNavEnv()
+
+
+def test_privileged_critic_reads_more_than_the_actor(tiny: TrainConfig, tmp_path: Path) -> None:
+    """With a critic group the critic reads 399 + 2 values, the actor 399; init= from a plain
+    checkpoint takes the actor and reports that the critic was not taken."""
+    plain = _trained(tiny, tmp_path, iterations=1)
+    plain.env.close()
+    env = NavVecEnv(privileged_env_fn, 4, seed=0, workers=0, max_episode_length=12)
+    runner = build_runner(env, dataclasses.replace(tiny, seed=5), None)
+    assert runner.alg.critic.mlp[0].in_features == OBS_DIM + 2
+    assert runner.alg.actor.mlp[0].in_features == OBS_DIM
+    assert load_checkpoint(runner, checkpoints(tmp_path)[-1], weights_only=True) is False
+    ours, theirs = runner.alg.actor.state_dict(), plain.alg.actor.state_dict()
+    assert all(torch.equal(v, ours[k]) for k, v in theirs.items())
+    learn(runner, 1)
+    env.close()
+    assert export_actor(runner.alg.get_policy(), tmp_path / "out")  # the exported actor needs no critic input
+
+
 def test_stop_request_saves_after_the_iteration(tiny: TrainConfig, tmp_path: Path) -> None:
     """A stop request (as SIGTERM sends) ends learn after one iteration; the checkpoint resumes at 1."""
     env = make_fake_env(None, tiny)
