@@ -25,7 +25,9 @@ Arguments:
     ``gymnasium.make("mjnav/Stage6-v1", overrides=["crowd.count=25"], render_mode="rgb_array",
     render_size=(480, 480), render_camera="top", render_overlays=True)``. ``spec.max_episode_steps``
     is the task's ``timing.episode_steps`` (overrides included); ``metadata["render_fps"]`` is
-    1 / control period; ``gymnasium.make_vec(..., vectorization_mode="sync"|"async")`` works.
+    1 / control period; ``gymnasium.make_vec(..., vectorization_mode="sync"|"async")`` works. With
+    ``observation.critic_pedestrians=K`` (training an asymmetric critic) ``info["critic"]`` holds
+    ``critic_size`` = 6·K privileged values (:mod:`mjnav.tasks.privileged`); the observation is unchanged.
 Version History:
     v1: first release. 2026-12-02, same id: a failed region is recovered (``region.on_failure``,
     default ``recover``; ``paper`` restores the first release's behaviour) and ``design`` selects
