@@ -197,10 +197,15 @@ class NavCore:
             self.counters["region_recoveries"] += int(region.recovered)
         return region
 
+    def frame_rotation(self, position: np.ndarray) -> float:
+        """Angle (rad) of the observation's x axis in the world at ``position`` (metres): the goal's
+        direction with ``observation.frame=goal``, else 0."""
+        if self.config.observation.frame != "goal":
+            return 0.0
+        return math.atan2(self._goal[1] - position[1], self._goal[0] - position[0])
+
     def _frame(self, position: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        rotation = 0.0
-        if self.config.observation.frame == "goal":
-            rotation = math.atan2(self._goal[1] - position[1], self._goal[0] - position[0])
+        rotation = self.frame_rotation(position)
         polygon = obs_lib.polygon_block(self.region.boundary, self._inflation, rotation)
         state = obs_lib.state_block(
             position, velocity, self.goal, self.region.success, self._plan, self._inflation,

@@ -10,7 +10,6 @@ Stages differ only by their :class:`mjnav.config.TaskConfig`.
 
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
@@ -144,10 +143,7 @@ class CrowdNavTask(composer.Task):
             return
         circles = self.sim.pedestrian_circles()
         velocities = self._tracker.update(float(physics.data.time), circles[:, :2])
-        rotation = 0.0
-        if self.config.observation.frame == "goal":
-            goal = self.layout.goal
-            rotation = math.atan2(goal[1] - position[1], goal[0] - position[0])
+        rotation = self.core.frame_rotation(position)
         self._critic[:] = pedestrian_features(position, circles, velocities, count, rotation)
 
     # ------------------------------------------------------------------ scoring

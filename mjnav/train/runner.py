@@ -292,10 +292,11 @@ def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool
         Whether the critic was loaded (always True without ``weights_only``).
     """
     if weights_only:
-        saved = torch.load(str(path), map_location="cpu", weights_only=False).get("critic_state_dict", {})
+        saved = torch.load(str(path), map_location=runner.device, weights_only=False)
         own = getattr(runner.alg, "_raw_critic", runner.alg.critic).state_dict()
-        critic = {k: tuple(v.shape) for k, v in saved.items()} == {k: tuple(v.shape) for k, v in own.items()}
-        runner.load(str(path), load_cfg={"actor": True, "critic": critic}, map_location=runner.device)
+        shapes = {k: tuple(v.shape) for k, v in saved.get("critic_state_dict", {}).items()}
+        critic = shapes == {k: tuple(v.shape) for k, v in own.items()}
+        runner.alg.load(saved, {"actor": True, "critic": critic}, strict=True)  # what runner.load does, read once
         return critic
     runner.load(str(path), map_location=runner.device)
     runner.current_learning_iteration += 1
