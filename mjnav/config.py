@@ -49,7 +49,7 @@ class TaskConfig:
     """
 
     name: str = "custom"
-    version: int = 1
+    version: int = 2  # 2: pedestrians keep layout.pedestrian_clearance from start and goal
     collision: Literal["contact", "scan"] = "contact"
     design: Literal["ours", "design1", "design2", "design3", "design4"] = "ours"
     arena: ArenaConfig = ArenaConfig()

@@ -273,6 +273,9 @@ class LayoutConfig:
         obstacle_clearance: Minimum distance of obstacle centres from start and goal, metres.
         min_start_scan: Re-sample until the nearest shrunk scan reading at the start exceeds this, metres.
         pedestrian_gap: Minimum gap between pedestrians at spawn, metres.
+        pedestrian_clearance: Minimum distance of pedestrian centres from start and goal at spawn,
+            metres (spec §9's 1.95 m for obstacle centres, which the authors' task generator applies
+            to pedestrians too; 0 gives task version 1's layouts).
         max_attempts: Attempts before sampling fails with an error.
     """
 
@@ -282,11 +285,12 @@ class LayoutConfig:
     obstacle_clearance: float = 1.95
     min_start_scan: float = 1.0
     pedestrian_gap: float = 0.1
+    pedestrian_clearance: float = 1.95
     max_attempts: int = 1000
 
     def __post_init__(self) -> None:
         for name in ("start_goal_min_distance", "free_clearance", "obstacle_clearance", "min_start_scan",
-                     "pedestrian_gap"):
+                     "pedestrian_gap", "pedestrian_clearance"):
             check(getattr(self, name) >= 0, name, "must be >= 0")
         check(self.start_goal_max_distance == 0 or self.start_goal_max_distance >= self.start_goal_min_distance,
               "start_goal_max_distance", "must be 0 (no limit) or >= start_goal_min_distance")

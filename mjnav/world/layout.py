@@ -13,7 +13,9 @@ One attempt draws a whole scene in this order, each item from the generator pass
    of the start.
 3. Pedestrians (``crowd.count``): radius uniform in ``crowd.radius``, centre uniform over the
    interior shrunk by the radius, redrawn (up to ``_ITEM_TRIES`` times) until clear of the
-   obstacles (signed distance >= radius) and ``pedestrian_gap`` clear of earlier pedestrians.
+   obstacles (signed distance >= radius), ``pedestrian_gap`` clear of earlier pedestrians, with
+   the centre at least ``pedestrian_clearance`` from the start and the goal (spec §9: obstacle
+   centres >= 1.95 m from both; pedestrians are the dynamic obstacles).
 4. Start scan: the noise-free analytic scan at the start, shrunk by ``inflation``, must read
    more than ``min_start_scan`` on every beam; a pedestrian overlapping the robot's disc at the
    start also fails. The walls-and-obstacles part of this test runs right after the start is
@@ -177,9 +179,12 @@ def _free_point(
 @njit(cache=True)
 def _ped_fits(
     x: float, y: float, r: float, i: int, gap: float, positions: np.ndarray, radii: np.ndarray,
-    polys: np.ndarray,
+    polys: np.ndarray, start: np.ndarray, goal: np.ndarray, clearance: float,
 ) -> bool:
-    """Whether pedestrian i at (x, y) clears the obstacles and pedestrians 0..i-1."""
+    """Whether pedestrian i at (x, y) clears the obstacles and pedestrians 0..i-1, and its centre
+    lies at least ``clearance`` from the start and the goal."""
+    if np.hypot(x - start[0], y - start[1]) < clearance or np.hypot(x - goal[0], y - goal[1]) < clearance:
+        return False
     for k in range(polys.shape[0]):
         if _signed_distance(x, y, polys[k]) < r:
             return False
@@ -191,17 +196,18 @@ def _ped_fits(
 
 @njit(cache=True)
 def _place_peds(
-    rng: np.random.Generator, half: np.ndarray, r_lo: float, r_hi: float, gap: float, polys: np.ndarray,
-    positions: np.ndarray, radii: np.ndarray,
+    rng: np.random.Generator, half: np.ndarray, crowd: tuple[float, float, float, float], polys: np.ndarray,
+    start: np.ndarray, goal: np.ndarray, positions: np.ndarray, radii: np.ndarray,
 ) -> bool:
     """Place pedestrians one by one; False when one runs out of tries."""
+    r_lo, r_hi, gap, clearance = crowd
     for i in range(radii.shape[0]):
         r = rng.uniform(r_lo, r_hi)
         radii[i] = r
         placed = False
         for _ in range(_ITEM_TRIES):
             x, y = rng.uniform(-half[0] + r, half[0] - r), rng.uniform(-half[1] + r, half[1] - r)
-            if _ped_fits(x, y, r, i, gap, positions, radii, polys):
+            if _ped_fits(x, y, r, i, gap, positions, radii, polys, start, goal, clearance):
                 positions[i, 0], positions[i, 1] = x, y
                 placed = True
                 break
@@ -254,13 +260,13 @@ def _static_segments(half: np.ndarray, polys: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def _sample_scene(
     rng: np.random.Generator, bank: np.ndarray, half: np.ndarray, obstacle_margin: float,
-    geometry: tuple[float, float, float, float], crowd: tuple[float, float, float],
+    geometry: tuple[float, float, float, float], crowd: tuple[float, float, float, float],
     scan: tuple[float, float, float], cos_a: np.ndarray, sin_a: np.ndarray, scene: tuple[np.ndarray, ...],
 ) -> int:
     """One attempt: fill ``scene`` in place; return 0 on success, else the failing step (1-4).
 
     geometry = (clearance, centre clearance, min distance, max distance); crowd = (r_lo, r_hi,
-    gap); scan = (robot radius, max range, threshold); scene = (shapes, poses, polys, start,
+    gap, start/goal clearance); scan = (robot radius, max range, threshold); scene = (shapes, poses, polys, start,
     goal, positions, radii).
     """
     shapes, poses, polys, start, goal, positions, radii = scene
@@ -273,7 +279,7 @@ def _sample_scene(
         return 4
     if not _free_point(rng, half, clear, centre_clear, poses, polys, start, dist_lo, dist_hi, goal):
         return 2
-    if not _place_peds(rng, half, crowd[0], crowd[1], crowd[2], polys, positions, radii):
+    if not _place_peds(rng, half, crowd, polys, start, goal, positions, radii):
         return 3
     circles = np.empty((radii.shape[0], 3))
     circles[:, :2], circles[:, 2] = positions, radii
@@ -285,7 +291,7 @@ def _sample_scene(
 @njit(cache=True)
 def _sample_attempts(
     rng: np.random.Generator, bank: np.ndarray, half: np.ndarray, obstacle_margin: float,
-    geometry: tuple[float, float, float, float], crowd: tuple[float, float, float],
+    geometry: tuple[float, float, float, float], crowd: tuple[float, float, float, float],
     scan: tuple[float, float, float], cos_a: np.ndarray, sin_a: np.ndarray, scene: tuple[np.ndarray, ...],
     max_attempts: int, fails: np.ndarray,
 ) -> bool:
@@ -349,7 +355,7 @@ def sample_layout(
         obstacles: Obstacle count (K); the shapes come from ``bank``.
         crowd: Pedestrian count (P), radius range (m) and speed range (m/s).
         layout: Clearances (m), start-goal distance bounds (m), ``min_start_scan`` (m),
-            ``pedestrian_gap`` (m) and ``max_attempts``.
+            ``pedestrian_gap`` and ``pedestrian_clearance`` (m) and ``max_attempts``.
         lidar: Beam count and ``max_range`` (m) of the noise-free start scan.
         bank: The task's obstacle shape bank.
         rng: The only source of randomness.
@@ -370,7 +376,8 @@ def sample_layout(
     cos_a, sin_a = np.cos(angles), np.sin(angles)
     geometry = (clearance, layout.obstacle_clearance, layout.start_goal_min_distance,
                 layout.start_goal_max_distance)
-    crowd_params = (float(crowd.radius[0]), float(crowd.radius[1]), layout.pedestrian_gap)
+    crowd_params = (float(crowd.radius[0]), float(crowd.radius[1]), layout.pedestrian_gap,
+                    layout.pedestrian_clearance)
     scan = (robot_radius, lidar.max_range, layout.min_start_scan + inflation)
     half = 0.5 * np.asarray(arena.size, dtype=np.float64)
     scene = _empty_scene(obstacles.count, crowd.count)

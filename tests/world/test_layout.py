@@ -158,3 +158,20 @@ def test_layout_equality_is_by_value():
     """Layouts compare by array values, not identity, and never equal other types."""
     layout = _sample(STAGE7, 5)
     assert isinstance(layout, Layout) and layout != "layout"
+
+
+def test_pedestrian_clearance_keeps_the_crowd_off_start_and_goal():
+    """Spec §9: obstacle centres, pedestrians included, >= 1.95 m from start and goal (default)."""
+    assert LAYOUT.pedestrian_clearance == 1.95
+    for seed in range(50):
+        sampled = _sample(STAGE7, seed)
+        for point in (sampled.start, sampled.goal):
+            assert np.linalg.norm(sampled.ped_positions - point, axis=1).min() >= 1.95
+    # 0 gives task version 1's layouts, where stage-7 pedestrians do start near the goal
+    old = [_sample(STAGE7, seed, LayoutConfig(pedestrian_clearance=0.0)) for seed in range(20)]
+    assert any(np.linalg.norm(s.ped_positions - s.goal, axis=1).min() < 1.95 for s in old)
+
+
+def test_negative_pedestrian_clearance_is_refused():
+    with pytest.raises(ValueError, match="pedestrian_clearance: must be >= 0"):
+        LayoutConfig(pedestrian_clearance=-0.1)
