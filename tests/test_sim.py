@@ -100,7 +100,9 @@ def test_collisions_report_their_kind():
     model, data = physics.model.ptr, physics.data.ptr
     targets = {
         "pedestrian": sim.pedestrian_circles()[0, :2],
-        "obstacle": sim.arena.obstacle_polygons(physics, 0.3)[0].mean(axis=0),
+        # straddling an edge: a disc wholly inside a mesh prism is a case MuJoCo's convex
+        # collision may miss, and one a robot moving <= 7 cm per substep never reaches
+        "obstacle": sim.arena.obstacle_polygons(physics, 0.3)[0][:2].mean(axis=0),
         "wall": np.array([10.0 - 0.1, layout.start[1]]),
     }
     assert sim.robot_in_collision(physics) == (False, None)

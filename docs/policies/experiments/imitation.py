@@ -16,6 +16,9 @@ IMIT_TEACHER=vo swaps mpc_gap's Q_l for the privileged one of ``mpc_crowd``
 control period), which the student never sees; IMIT_VO overrides its MpcCrowdConfig fields (e.g.
 ``margin=0.5,weight=4``). Through Ours' layer (goal frame, margin 0.1) it succeeds in 97.0 / 90.5 /
 72.0 % of stage 5 / 6 / 7 tuning scenarios (200 each; held-out, 1,000 each: 97.2 / 86.8 / 72.2 %).
+IMIT_CONSISTENT=w (with IMIT_TEACHER=vo, in DAgger collection) adds w·cos(candidate, the acting
+student's Q_l direction) to the teacher's score, so that among near-equal detours it labels the
+student's own (docs/results.md: no gain at w = 0.3).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ OVERRIDES = ["collision=scan", "region.margin=0.1"] + [
 A_S, B_S = 0.5, 0.3
 TEACHER = os.environ.get("IMIT_TEACHER", "gap")  # gap: mpc_gap's Q_l; vo: the crowd-aware one below
 R_INF = 0.325
+CONSISTENT = float(os.environ.get("IMIT_CONSISTENT", "0"))  # bonus for the student's own direction
 VO = {k: float(v) for k, v in (kv.split("=") for kv in os.environ.get("IMIT_VO", "").split(",") if kv)}
 _PREV = {}
 
@@ -42,9 +46,31 @@ def logit(x):
     return np.log(x / (1 - x))
 
 
-def crowd_q_l(env, p, goal):
+def _consistent_q_l(region, goal, v, relative, velocities, config, prefer):
+    """``crowd_long_point``'s choice with ``CONSISTENT``·cos(candidate, ``prefer``) added to every
+    moving candidate's score: among near-equal detours the teacher labels the student's own."""
+    from mjnav.baselines import mpc_crowd as mc
+
+    dist = float(np.hypot(*goal))
+    cand = mc._candidates(config)
+    speeds = np.hypot(cand[:, 0], cand[:, 1])
+    reach = np.minimum(speeds * 1.0, config.safety * mc._free_distances(region, cand, speeds))
+    clearance = mc._clearance(cand, v, relative, velocities, R_INF, config)
+    danger = np.maximum(0.0, config.margin - clearance) / config.margin
+    score = cand @ (goal / max(dist, 1e-9)) / max(config.speeds) - config.weight * danger
+    score = score - 0.5 * (reach < 0.5 * speeds)
+    moving = speeds > 0
+    score[moving] += CONSISTENT * (cand[moving] @ prefer) / speeds[moving]
+    best = int(np.argmax(score))
+    if best == 0 or dist < 1e-9:
+        return np.zeros(2)
+    return cand[best] / speeds[best] * min(float(reach[best]), dist)
+
+
+def crowd_q_l(env, p, goal, prefer=None):
     """Privileged teacher: mjnav's ``mpc_crowd`` choice of Q_l (robot frame) from the pedestrians'
-    true positions, their velocities differenced over the control period."""
+    true positions, their velocities differenced over the control period (``prefer``: a unit
+    direction the choice leans to, see ``_consistent_q_l``)."""
     from mjnav.baselines.mpc_crowd import CrowdTracker, MpcCrowdConfig, crowd_long_point
 
     task = env.task
@@ -56,10 +82,26 @@ def crowd_q_l(env, p, goal):
     v = task.sim.robot_state(env._env.physics)[1][:2]
     relative = np.column_stack([circles[:, :2] - p[:2], circles[:, 2]])
     config = MpcCrowdConfig(**VO)
+    if prefer is not None:
+        return _consistent_q_l(task.core.region, goal, v, relative, velocities, config, prefer)
     return crowd_long_point(task.core.region, goal, v, relative, velocities, R_INF, 1.0, config)
 
 
-def teacher_action(env) -> np.ndarray:
+def student_direction(env, action) -> np.ndarray | None:
+    """Unit direction (robot frame) of the Q_l that ``action`` (logits) maps to; None if degenerate."""
+    from mjnav.control.action import map_action_values
+
+    task = env.task
+    p, v, a = task.sim.robot_state(env._env.physics)
+    goal = np.asarray(task.core.goal) - p
+    values = 1.0 / (1.0 + np.exp(-np.asarray(action, float)))
+    motion = [float(x) for x in (*v[:2], *a[:2], *goal[:2])]
+    q_l = map_action_values([*map(float, values), *motion], task.core.region, task.core.config.action).q_l
+    n = float(np.hypot(*q_l))
+    return q_l / n if n > 1e-6 else None
+
+
+def teacher_action(env, prefer=None) -> np.ndarray:
     from mjnav.baselines.mpc_goal import MpcGapConfig, reference_points
     from mjnav.control.action import map_action_values, radii
 
@@ -72,7 +114,7 @@ def teacher_action(env) -> np.ndarray:
     cfg = core.config.action
     r_s, _ = radii(v, a, cfg)
     if TEACHER == "vo":
-        q_l = crowd_q_l(env, p, goal)
+        q_l = crowd_q_l(env, p, goal, prefer)
     else:
         _, q_l, _ = reference_points(region, goal, r_s, 0.9, MpcGapConfig())
     motion = [float(x) for x in (*v, *a, *goal)]
@@ -112,7 +154,8 @@ def run(stage, n, seed0, act, record=None, teacher_label=False):
             action = act(env, obs)
             if record is not None:
                 record[0].append(obs.copy())
-                record[1].append(teacher_action(env) if teacher_label else action)
+                prefer = student_direction(env, action) if CONSISTENT > 0 else None
+                record[1].append(teacher_action(env, prefer) if teacher_label else action)
             obs, _, term, trunc, info = env.step(action.astype(np.float32))
             if term or trunc:
                 break
