@@ -121,8 +121,13 @@ def parse_args(argv: Sequence[str]) -> RunArgs:
 
 
 def _task_from_dict(data: dict[str, Any], overrides: list[str]) -> Any:
+    """The saved run's task; a version-1 dump keeps version 1's layouts (no pedestrian clearance)."""
     from mjnav.config import TaskConfig
 
+    if int(data.get("version", 1)) < 2:
+        layout = dict(data.get("layout") or {})
+        layout.setdefault("pedestrian_clearance", 0.0)
+        data = {**data, "layout": layout}
     return apply_overrides(from_dict(TaskConfig, data), overrides)
 
 

@@ -447,3 +447,15 @@ def test_value_clip_is_configurable() -> None:
     assert rsl_config(TrainConfig())["algorithm"]["use_clipped_value_loss"] is True
     assert rsl_config(TrainConfig(value_clip=False))["algorithm"]["use_clipped_value_loss"] is False
     assert load_train(["value_clip=false"]).value_clip is False
+
+
+def test_resumed_version_1_task_keeps_its_layouts() -> None:
+    """A run saved before task version 2 resumes on its own layouts (pedestrians unconstrained)."""
+    from mjnav.config import TaskConfig, load_task
+
+    saved = dataclasses.asdict(load_task("stage7"))
+    del saved["layout"]["pedestrian_clearance"]
+    old = session._task_from_dict({**saved, "version": 1}, [])
+    assert old.version == 1 and old.layout.pedestrian_clearance == 0.0
+    new = session._task_from_dict(dataclasses.asdict(load_task("stage7")), [])
+    assert new.version == TaskConfig().version == 2 and new.layout.pedestrian_clearance == 1.95
