@@ -266,8 +266,8 @@ def _sample_scene(
     """One attempt: fill ``scene`` in place; return 0 on success, else the failing step (1-4).
 
     geometry = (clearance, centre clearance, min distance, max distance); crowd = (r_lo, r_hi,
-    gap, start/goal clearance); scan = (robot radius, max range, threshold); scene = (shapes, poses, polys, start,
-    goal, positions, radii).
+    gap, start/goal clearance); scan = (robot radius, max range, threshold); scene = (shapes,
+    poses, polys, start, goal, positions, radii).
     """
     shapes, poses, polys, start, goal, positions, radii = scene
     _place_obstacles(rng, bank, half[0] - obstacle_margin, half[1] - obstacle_margin, shapes, poses, polys)
