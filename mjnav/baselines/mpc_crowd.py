@@ -38,7 +38,7 @@ from mjnav.baselines.mpc_goal import MpcGoalPlanner
 from mjnav.control.action import boundary_distance, goal_inside
 from mjnav.tasks.privileged import CrowdTracker
 
-__all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "crowd_long_point"]
+__all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "best_long_point", "crowd_long_point", "crowd_scores"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
@@ -129,6 +129,38 @@ def _clearance(candidates: np.ndarray, velocity: np.ndarray, pedestrians: np.nda
     return (gap - pedestrians[None, None, :, 2] - inflation + config.kappa * t[None, :, None]).min(axis=(1, 2))
 
 
+def crowd_scores(region: Region, goal: np.ndarray, velocity: np.ndarray, pedestrians: np.ndarray,
+                 ped_velocities: np.ndarray, inflation: float, reach_time: float,
+                 config: MpcCrowdConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every candidate velocity with its reach and score (module docstring); arguments as for
+    :func:`crowd_long_point`.
+
+    Returns:
+        ``(candidates, reach, score)``: (K, 2) velocities, m/s (row 0 stands still); (K,) how far
+        ``Q_l`` may lie along each, metres; (K,) scores, higher is better.
+    """
+    dist = float(np.hypot(*goal))
+    candidates = _candidates(config)
+    speeds = np.hypot(candidates[:, 0], candidates[:, 1])
+    reach = np.minimum(speeds * reach_time, config.safety * _free_distances(region, candidates, speeds))
+    clearance = _clearance(candidates, velocity, pedestrians, ped_velocities, inflation, config)
+    danger = np.maximum(0.0, config.margin - clearance) / config.margin
+    progress = candidates @ (goal / max(dist, 1e-9)) / max(config.speeds)
+    score = progress - config.weight * danger - 0.5 * (reach < 0.5 * speeds * reach_time)
+    return candidates, reach, score
+
+
+def best_long_point(candidates: np.ndarray, reach: np.ndarray, score: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """``Q_l`` (robot frame, metres) of the best-scoring candidate of :func:`crowd_scores`: along its
+    velocity, as far as its reach and the goal allow; zeros to stand still."""
+    best = int(np.argmax(score))
+    dist = float(np.hypot(*goal))
+    if best == 0 or dist < 1e-9:
+        return np.zeros(2)
+    speed = float(np.hypot(*candidates[best]))
+    return candidates[best] / speed * min(float(reach[best]), dist)
+
+
 def crowd_long_point(region: Region, goal: np.ndarray, velocity: np.ndarray, pedestrians: np.ndarray,
                      ped_velocities: np.ndarray, inflation: float, reach_time: float,
                      config: MpcCrowdConfig) -> np.ndarray:
@@ -144,18 +176,8 @@ def crowd_long_point(region: Region, goal: np.ndarray, velocity: np.ndarray, ped
         reach_time: Time ``Q_l`` lies ahead at the candidate's speed (the MPC horizon), seconds.
         config: :class:`MpcCrowdConfig`.
     """
-    dist = float(np.hypot(*goal))
-    candidates = _candidates(config)
-    speeds = np.hypot(candidates[:, 0], candidates[:, 1])
-    reach = np.minimum(speeds * reach_time, config.safety * _free_distances(region, candidates, speeds))
-    clearance = _clearance(candidates, velocity, pedestrians, ped_velocities, inflation, config)
-    danger = np.maximum(0.0, config.margin - clearance) / config.margin
-    progress = candidates @ (goal / max(dist, 1e-9)) / max(config.speeds)
-    score = progress - config.weight * danger - 0.5 * (reach < 0.5 * speeds * reach_time)
-    best = int(np.argmax(score))
-    if best == 0 or dist < 1e-9:
-        return np.zeros(2)
-    return candidates[best] / speeds[best] * min(float(reach[best]), dist)
+    scored = crowd_scores(region, goal, velocity, pedestrians, ped_velocities, inflation, reach_time, config)
+    return best_long_point(*scored, goal)
 
 
 class MpcCrowdPlanner(MpcGoalPlanner):

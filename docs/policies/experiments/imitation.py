@@ -46,32 +46,12 @@ def logit(x):
     return np.log(x / (1 - x))
 
 
-def _consistent_q_l(region, goal, v, relative, velocities, config, prefer):
-    """``crowd_long_point``'s choice with ``CONSISTENT``·cos(candidate, ``prefer``) added to every
-    moving candidate's score: among near-equal detours the teacher labels the student's own."""
-    from mjnav.baselines import mpc_crowd as mc
-
-    dist = float(np.hypot(*goal))
-    cand = mc._candidates(config)
-    speeds = np.hypot(cand[:, 0], cand[:, 1])
-    reach = np.minimum(speeds * 1.0, config.safety * mc._free_distances(region, cand, speeds))
-    clearance = mc._clearance(cand, v, relative, velocities, R_INF, config)
-    danger = np.maximum(0.0, config.margin - clearance) / config.margin
-    score = cand @ (goal / max(dist, 1e-9)) / max(config.speeds) - config.weight * danger
-    score = score - 0.5 * (reach < 0.5 * speeds)
-    moving = speeds > 0
-    score[moving] += CONSISTENT * (cand[moving] @ prefer) / speeds[moving]
-    best = int(np.argmax(score))
-    if best == 0 or dist < 1e-9:
-        return np.zeros(2)
-    return cand[best] / speeds[best] * min(float(reach[best]), dist)
-
-
 def crowd_q_l(env, p, goal, prefer=None):
     """Privileged teacher: mjnav's ``mpc_crowd`` choice of Q_l (robot frame) from the pedestrians'
     true positions, their velocities differenced over the control period (``prefer``: a unit
-    direction the choice leans to, see ``_consistent_q_l``)."""
-    from mjnav.baselines.mpc_crowd import CrowdTracker, MpcCrowdConfig, crowd_long_point
+    direction: ``CONSISTENT``·cos(candidate, ``prefer``) is added to every moving candidate's score,
+    so that among near-equal detours the teacher labels the student's own)."""
+    from mjnav.baselines.mpc_crowd import CrowdTracker, MpcCrowdConfig, best_long_point, crowd_scores
 
     task = env.task
     circles = task.sim.pedestrian_circles()
@@ -82,19 +62,23 @@ def crowd_q_l(env, p, goal, prefer=None):
     v = task.sim.robot_state(env._env.physics)[1][:2]
     relative = np.column_stack([circles[:, :2] - p[:2], circles[:, 2]])
     config = MpcCrowdConfig(**VO)
+    candidates, reach, score = crowd_scores(task.core.region, goal, v, relative, velocities, R_INF, 1.0, config)
     if prefer is not None:
-        return _consistent_q_l(task.core.region, goal, v, relative, velocities, config, prefer)
-    return crowd_long_point(task.core.region, goal, v, relative, velocities, R_INF, 1.0, config)
+        speeds = np.hypot(candidates[:, 0], candidates[:, 1])
+        moving = speeds > 0
+        score[moving] += CONSISTENT * (candidates[moving] @ prefer) / speeds[moving]
+    return best_long_point(candidates, reach, score, goal)
 
 
 def student_direction(env, action) -> np.ndarray | None:
     """Unit direction (robot frame) of the Q_l that ``action`` (logits) maps to; None if degenerate."""
     from mjnav.control.action import map_action_values
+    from mjnav.tasks.core import sigmoid
 
     task = env.task
     p, v, a = task.sim.robot_state(env._env.physics)
     goal = np.asarray(task.core.goal) - p
-    values = 1.0 / (1.0 + np.exp(-np.asarray(action, float)))
+    values = sigmoid(np.asarray(action, float))
     motion = [float(x) for x in (*v[:2], *a[:2], *goal[:2])]
     q_l = map_action_values([*map(float, values), *motion], task.core.region, task.core.config.action).q_l
     n = float(np.hypot(*q_l))
