@@ -5,12 +5,16 @@
     python scripts/plot.py compare tasks=stage5,stage6,stage7 policies=docs/policies/{stage}_policy.pt,teb
                            [seed=0] [out=compare.png] [task.KEY=VALUE ...]
     python scripts/plot.py curve run=runs/stage6-... [out=curve.png] [smooth=10]
+    python scripts/plot.py distance evals=A/stage7.jsonl,B/stage7.jsonl [labels=Ours,TEB]
+                           [edges=0,2,4,6,8] [out=distance.png]
 
 ``seed`` is the held-out scenario index (episode seed 2**32 + seed, as scripts/evaluate.py);
 ``episode_seed=K`` gives a raw episode seed. ``plans=`` draws, at those times (s), the convex
 region and the reference trajectory of a learned policy (the paper's qualitative figure).
 ``compare``: one row per task, one column per policy (``{stage}`` is filled in), every policy on
-the same scenario under the same task overrides. See :mod:`mjnav.eval.plots`.
+the same scenario under the same task overrides. ``distance``: success by start-goal distance
+(95 % intervals) of evaluation JSONLs (scripts/evaluate.py, paper_tables.py), as a figure and a
+markdown table. See :mod:`mjnav.eval.plots`.
 """
 
 from __future__ import annotations
@@ -19,7 +23,8 @@ import sys
 
 from mjnav.schema import split_args
 
-_KEYS = ("task", "policy", "seed", "episode_seed", "out", "run", "smooth", "plans", "tasks", "policies")
+_KEYS = ("task", "policy", "seed", "episode_seed", "out", "run", "smooth", "plans", "tasks", "policies",
+         "evals", "labels", "edges")
 
 
 def _parse(argv: list[str]) -> tuple[dict, list[str]]:
@@ -74,9 +79,30 @@ def _compare(args: dict[str, str], overrides: list[str]) -> str:
     return "\n".join([f"{out}:", *lines])
 
 
+def _distance(args: dict[str, str]) -> str:
+    from mjnav.eval.plots import plot_success_by_distance
+    from mjnav.eval.tables import format_strata, load_rows, success_by_distance
+
+    if "evals" not in args:
+        raise ValueError("distance needs evals=A.jsonl[,B.jsonl] (evaluation records)")
+    paths = str(args["evals"]).split(",")
+    labels = str(args["labels"]).split(",") if "labels" in args else [p.rsplit("/", 2)[-2] for p in paths]
+    if len(labels) != len(paths):
+        raise ValueError(f"labels=: {len(labels)} names for {len(paths)} evals")
+    edges = [float(e) for e in str(args.get("edges", "0,2,4,6,8")).split(",")]
+    series = {}
+    for label, path in zip(labels, paths):
+        rows = load_rows(path)
+        if not rows:
+            raise FileNotFoundError(f"{path}: no evaluation records")
+        series[label] = success_by_distance(rows, edges)
+    out = plot_success_by_distance(series, args.get("out", "distance.png"))
+    return f"{out}:\n{format_strata(series)}"
+
+
 def main(argv: list[str]) -> int:
-    """Dispatch to ``episode`` or ``curve``."""
-    if not argv or argv[0] not in ("episode", "compare", "curve"):
+    """Dispatch to ``episode``, ``compare``, ``curve`` or ``distance``."""
+    if not argv or argv[0] not in ("episode", "compare", "curve", "distance"):
         print(__doc__, file=sys.stderr)
         return 2
     try:
@@ -84,9 +110,9 @@ def main(argv: list[str]) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    if argv[0] == "compare":
+    if argv[0] in ("compare", "distance"):
         try:
-            print(_compare(args, overrides))
+            print(_compare(args, overrides) if argv[0] == "compare" else _distance(args))
         except (ValueError, FileNotFoundError) as err:
             print(f"error: {err}", file=sys.stderr)
             return 2

@@ -3,6 +3,8 @@
 :func:`plot_episode` draws, like the paper's comparison figure, the robot path (dark blue) with
 its time labels (cyan, every ``label_every`` seconds), the pedestrians' paths (red) with theirs
 (black), static obstacles (grey), walls, the start (blue disc) and the goal (green star).
+:func:`plot_success_by_distance` draws success against the start-goal distance
+(:func:`mjnav.eval.tables.success_by_distance`), one line per method.
 :func:`plot_learning_curve` reads a training run's TensorBoard events (``episode/success`` and
 ``episode/return``, falling back to rsl-rl's ``Train/mean_reward``) and plots them against
 environment steps (iteration × ``num_envs`` × ``steps_per_env`` from the run's ``config.yaml``).
@@ -22,7 +24,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Circle, Polygon, Rectangle
 
-__all__ = ["draw_episode", "load_scalars", "plot_episode", "plot_grid", "plot_learning_curve"]
+__all__ = ["draw_episode", "load_scalars", "plot_episode", "plot_grid", "plot_learning_curve",
+           "plot_success_by_distance"]
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -214,6 +217,38 @@ def plot_learning_curve(run_dir: str | Path, out: str | Path, smooth: int = 10) 
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("environment steps" if scale else "iteration")
     axes[0, 0].set_title(run_dir.name, fontsize=9)
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out)
+    plt.close(fig)
+    return Path(out)
+
+
+def plot_success_by_distance(series: dict[str, list[dict]], out: str | Path, title: str = "") -> Path:
+    """Success % with 95 % intervals per start-goal distance bin, one line per method, as PNG.
+
+    Args:
+        series: Method name -> the bins of :func:`mjnav.eval.tables.success_by_distance`.
+        out: PNG path.
+        title: Figure title.
+
+    Returns:
+        The written path.
+    """
+    fig, ax = plt.subplots(figsize=(6, 3.4), dpi=120)
+    for k, (name, bins) in enumerate(series.items()):
+        full = [b for b in bins if b["episodes"]]
+        hi = [b["hi"] if np.isfinite(b["hi"]) else b["lo"] + 2.0 for b in full]
+        x = np.array([0.5 * (b["lo"] + h) for b, h in zip(full, hi)]) + 0.06 * (k - 0.5 * (len(series) - 1))
+        rate = np.array([100 * b["rate"] for b in full])
+        err = np.array([[100 * (b["rate"] - b["ci"][0]), 100 * (b["ci"][1] - b["rate"])] for b in full]).reshape(-1, 2)
+        ax.errorbar(x, rate, yerr=np.clip(err, 0.0, None).T, marker="o", ms=4, capsize=3, label=name)
+    ax.set_xlabel("start-goal distance (m), bin centre")
+    ax.set_ylabel("success (%)")
+    ax.set_ylim(0, 102)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=9)
     fig.tight_layout()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out)

@@ -21,6 +21,7 @@ episodes carry their outcome under the paper's rule wherever they determine it
 """
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 from collections.abc import Sequence
@@ -29,7 +30,8 @@ from typing import Any
 
 from mjnav.eval.runner import read_jsonl as load_rows
 
-__all__ = ["TABLES", "Method", "Table", "format_table", "load_rows", "table_rows", "wilson"]
+__all__ = ["TABLES", "Method", "Table", "format_strata", "format_table", "load_rows", "success_by_distance",
+           "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
 
@@ -112,6 +114,56 @@ def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
     return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def success_by_distance(rows: Sequence[dict[str, Any]], edges: Sequence[float] = (0.0, 2.0, 4.0, 6.0, 8.0)
+                        ) -> list[dict[str, Any]]:
+    """Success rate by straight start-goal distance: how a method's result depends on the trip.
+
+    Args:
+        rows: Evaluation records (the runner's JSONL), each with ``start``, ``goal`` (m) and ``outcome``.
+        edges: Increasing bin edges, m; bin i holds distances in [edges[i], edges[i+1]), the last
+            one [edges[-1], inf); shorter trips are not counted.
+
+    Returns:
+        One dict per bin: ``lo``, ``hi`` (m), ``episodes``, ``success`` (count), ``rate`` and its
+        95 % Wilson interval ``ci`` (fractions; nan for an empty bin).
+
+    Raises:
+        ValueError: Edges not increasing or negative, or a record without start, goal or outcome.
+    """
+    edges = [float(e) for e in edges]
+    if not edges or edges[0] < 0 or any(b <= a for a, b in zip(edges, edges[1:])):
+        raise ValueError(f"edges must be non-negative and increasing, got {edges}")
+    bounds = [*edges, math.inf]
+    counts = [[0, 0] for _ in edges]
+    for k, row in enumerate(rows):
+        if not {"start", "goal", "outcome"} <= row.keys():
+            raise ValueError(f"record {k} has no start, goal or outcome (not an evaluation JSONL?)")
+        d = math.dist(row["start"], row["goal"])
+        i = bisect.bisect_right(edges, d) - 1
+        if i >= 0:
+            counts[i][0] += 1
+            counts[i][1] += row["outcome"] == "success"
+    return [{"lo": lo, "hi": hi, "episodes": n, "success": s, "rate": s / n if n else math.nan,
+             "ci": wilson(s, n)} for (lo, hi), (n, s) in zip(zip(bounds, bounds[1:]), counts)]
+
+
+def format_strata(series: dict[str, list[dict[str, Any]]]) -> str:
+    """Markdown: one row per distance bin, one column per method (success % [95 % CI] (episodes))."""
+    names = list(series)
+    if not names:
+        return ""
+    lines = ["| start-goal distance | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+    for i, first in enumerate(series[names[0]]):
+        label = f"{first['lo']:g}-{first['hi']:g} m" if math.isfinite(first["hi"]) else f">= {first['lo']:g} m"
+        cells = []
+        for name in names:
+            b = series[name][i]
+            cells.append("–" if not b["episodes"] else
+                         f"{100 * b['rate']:.1f} [{100 * b['ci'][0]:.1f}, {100 * b['ci'][1]:.1f}] ({b['episodes']})")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def _stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:

@@ -55,3 +55,21 @@ def test_learning_curve_from_events(tmp_path):
     assert len(scalars["episode/success"][0]) == 30
     out = plot_learning_curve(tmp_path, tmp_path / "curve.png")
     assert _is_png(out)
+
+
+def test_success_by_distance_figure_and_command(tmp_path):
+    """scripts/plot.py distance writes the figure and prints the table; a missing file is an error."""
+    import json
+
+    from tests._scripts import load_script
+
+    rows = [{"start": [0.0, 0.0], "goal": [d, 0.0], "outcome": "success" if d < 5 else "collision"}
+            for d in np.linspace(1.0, 9.0, 40)]
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "stage7.jsonl").write_text("\n".join(json.dumps(r) for r in rows))
+    plot = load_script("plot")
+    out = tmp_path / "d.png"
+    assert plot.main(["distance", f"evals={tmp_path / 'a' / 'stage7.jsonl'}", f"out={out}"]) == 0
+    assert _is_png(out)
+    assert plot.main(["distance", f"evals={tmp_path / 'missing.jsonl'}"]) == 2
+    assert plot.main(["distance", f"evals={tmp_path / 'a' / 'stage7.jsonl'}", "labels=A,B"]) == 2

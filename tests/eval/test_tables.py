@@ -138,3 +138,34 @@ def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
                                        frozen=TebConfig.__dataclass_params__.frozen)
     monkeypatch.setitem(PLANNER_CONFIGS, "teb", retuned)
     assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"] is None
+
+
+def _trip(d: float, outcome: str) -> dict:
+    return {"start": [0.0, 0.0], "goal": [d, 0.0], "outcome": outcome}
+
+
+def test_success_by_distance_bins_trips_and_counts_their_outcomes() -> None:
+    """Trips fall into [lo, hi) bins, the last one open; each bin has its rate and Wilson interval."""
+    rows = [_trip(1.0, "success"), _trip(2.0, "collision"), _trip(3.9, "success"), _trip(9.5, "timeout"),
+            _trip(0.5, "success")]
+    bins = tables.success_by_distance(rows, edges=(1.0, 2.0, 4.0))
+    assert [(b["lo"], b["hi"], b["episodes"], b["success"]) for b in bins] == [
+        (1.0, 2.0, 1, 1), (2.0, 4.0, 2, 1), (4.0, float("inf"), 1, 0)]  # the 0.5 m trip is below 1 m
+    assert bins[1]["rate"] == 0.5 and bins[1]["ci"] == tables.wilson(1, 2)
+    empty = tables.success_by_distance([], edges=(0.0, 5.0))
+    assert all(b["episodes"] == 0 and b["rate"] != b["rate"] for b in empty)  # nan for an empty bin
+    table = tables.format_strata({"A": bins, "B": bins})
+    assert "| 2-4 m | 50.0 [" in table and ">= 4 m" in table and table.count("\n") == 4
+
+
+@pytest.mark.parametrize("edges", [(), (2.0, 1.0), (-1.0, 2.0), (1.0, 1.0)])
+def test_success_by_distance_refuses_bad_edges(edges: tuple) -> None:
+    """Edges that are empty, negative or not increasing are a ValueError naming them."""
+    with pytest.raises(ValueError, match="edges"):
+        tables.success_by_distance([_trip(1.0, "success")], edges=edges)
+
+
+def test_success_by_distance_refuses_records_without_a_trip() -> None:
+    """A record without start, goal or outcome (not the runner's JSONL) is a ValueError, not a KeyError."""
+    with pytest.raises(ValueError, match="record 1"):
+        tables.success_by_distance([_trip(1.0, "success"), {"outcome": "success"}])
