@@ -99,6 +99,29 @@ def test_same_seed_same_rollout() -> None:
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
+def test_the_crowd_does_not_depend_on_the_robots_actions() -> None:
+    """Same episode seed, different actions: the pedestrians walk the same paths (common random
+    numbers: they ignore the robot and draw from their own stream), so re-played episodes compare
+    actions on the same crowd future."""
+    env = NavGymEnv("stage7", overrides=["collision=contact"], seed=0)
+    paths, robots = [], []
+    for scale in (0.0, 2.0):
+        env.reset(options={"episode_seed": 5})
+        rng, path = np.random.default_rng(1), []
+        for _ in range(15):
+            path.append(env.task.sim.pedestrian_circles()[:, :2].copy())
+            robot = env.task.sim.robot_state(env.physics)[0][:2].copy()
+            _, _, term, trunc, _ = env.step((scale * rng.normal(size=4)).astype(np.float32))
+            if term or trunc:
+                break
+        paths.append(np.array(path))
+        robots.append(robot)
+    env.close()
+    n = min(len(p) for p in paths)
+    assert n >= 5 and np.linalg.norm(robots[0] - robots[1]) > 0.1  # the robot did go elsewhere
+    np.testing.assert_array_equal(paths[0][:n], paths[1][:n])
+
+
 def test_episode_seed_option_selects_scenario(stage4: NavGymEnv) -> None:
     """options={'episode_seed': k} reproduces the same world regardless of history."""
     stage4.reset(options={"episode_seed": 42})
