@@ -20,6 +20,7 @@ markdown table. See :mod:`mjnav.eval.plots`.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from mjnav.schema import split_args
 
@@ -85,11 +86,16 @@ def _distance(args: dict[str, str]) -> str:
 
     if "evals" not in args:
         raise ValueError("distance needs evals=A.jsonl[,B.jsonl] (evaluation records)")
-    paths = str(args["evals"]).split(",")
-    labels = str(args["labels"]).split(",") if "labels" in args else [p.rsplit("/", 2)[-2] for p in paths]
-    if len(labels) != len(paths):
-        raise ValueError(f"labels=: {len(labels)} names for {len(paths)} evals")
-    edges = [float(e) for e in str(args.get("edges", "0,2,4,6,8")).split(",")]
+    paths = [Path(p) for p in str(args["evals"]).split(",")]
+    labels = str(args["labels"]).split(",") if "labels" in args else [p.parent.name or p.stem for p in paths]
+    if "labels" not in args and len(set(labels)) < len(labels):  # e.g. two stages of one method
+        labels = [f"{p.parent.name}/{p.stem}" if p.parent.name else p.stem for p in paths]
+    if len(labels) != len(paths) or len(set(labels)) < len(labels):
+        raise ValueError(f"labels=: need {len(paths)} distinct names, got {labels}")
+    try:
+        edges = [float(e) for e in str(args.get("edges", "0,2,4,6,8")).split(",")]
+    except ValueError:
+        raise ValueError(f"edges=: comma-separated distances in m, got {args['edges']!r}") from None
     series = {}
     for label, path in zip(labels, paths):
         rows = load_rows(path)

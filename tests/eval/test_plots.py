@@ -73,3 +73,7 @@ def test_success_by_distance_figure_and_command(tmp_path):
     assert _is_png(out)
     assert plot.main(["distance", f"evals={tmp_path / 'missing.jsonl'}"]) == 2
     assert plot.main(["distance", f"evals={tmp_path / 'a' / 'stage7.jsonl'}", "labels=A,B"]) == 2
+    assert plot.main(["distance", f"evals={tmp_path / 'a' / 'stage7.jsonl'}", "edges=0,x"]) == 2
+    (tmp_path / "a" / "stage6.jsonl").write_text((tmp_path / "a" / "stage7.jsonl").read_text())
+    both = f"evals={tmp_path / 'a' / 'stage6.jsonl'},{tmp_path / 'a' / 'stage7.jsonl'}"
+    assert plot.main(["distance", both, f"out={out}"]) == 0  # one folder: labelled a/stage6, a/stage7
