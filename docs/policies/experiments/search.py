@@ -38,6 +38,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from imitation import load_student as _actor  # noqa: E402  (the actor's mean: obs -> logits)
+
 HOLD = int(os.environ.get("SEARCH_HOLD", "5"))
 BACK = (4, 8, 12, 16, 20)
 #: Offsets in logit space of (α_s, β_s, α_l, β_l), by growing size: turn Q_l, then move it nearer / farther.
@@ -61,16 +64,6 @@ def config_path(ckpt: str | Path) -> Path:
 def _overrides(ckpt: str) -> list[str]:
     """The task overrides the checkpoint was trained with."""
     return list((yaml.safe_load(config_path(ckpt).read_text())["run"] or {}).get("task_overrides") or [])
-
-
-def _actor(ckpt: str):
-    import torch
-
-    from mjnav.eval.policies import build_actor
-
-    state = torch.load(ckpt, map_location="cpu", weights_only=False)["actor_state_dict"]
-    net = build_actor(state, ("relu", "relu", "hardswish")).eval()
-    return lambda obs: net(torch.as_tensor(obs, dtype=torch.float32)[None]).detach().numpy()[0]
 
 
 def play(env, seed: int, actor, offset: tuple[int, np.ndarray] | None = None, peds: list | None = None):
