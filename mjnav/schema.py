@@ -363,6 +363,11 @@ class ObservationConfig:
             direction at its own step. With ``goal`` the same scene seen from another direction
             gives the same observation, so the network need not compose the goal direction from
             the world-frame polar angles, velocity and dθ; pair it with ``action.heading='goal'``.
+        history: How the older frames' polygon blocks read: ``paper`` (each past region's own
+            boundary points, seen from where the robot was then) or ``aligned`` (not in the paper:
+            each past region read from the robot's current position along the current frame's
+            bearings, so that an approaching pedestrian shows as a falling r̂ at a fixed θ̂; the same
+            information, with the robot's own motion taken out; :func:`mjnav.tasks.observation.aligned_block`).
         critic_pedestrians: Privileged inputs of an asymmetric critic (training only; not in the
             paper): the K nearest pedestrians' true positions, velocities and radii
             (:mod:`mjnav.tasks.privileged`), reported as ``info["critic"]`` and given to the critic,
@@ -373,6 +378,7 @@ class ObservationConfig:
     angle: Literal["mpc", "velocity"] = "mpc"
     frame_stride: int = 1
     frame: Literal["world", "goal"] = "world"
+    history: Literal["paper", "aligned"] = "paper"
     critic_pedestrians: int = 0
 
     def __post_init__(self) -> None:
@@ -380,6 +386,7 @@ class ObservationConfig:
         check(self.critic_pedestrians >= 0, "critic_pedestrians", "must be >= 0")
         check(self.frame_stride >= 1, "frame_stride", "must be >= 1")
         check(self.frame in ("world", "goal"), "frame", "must be 'world' or 'goal'")
+        check(self.history in ("paper", "aligned"), "history", "must be 'paper' or 'aligned'")
 
 
 def _is_dataclass_type(tp: Any) -> bool:

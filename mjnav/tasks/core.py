@@ -166,6 +166,9 @@ class NavCore:
         self._limits = Limits.from_task(config)
         self._stack = obs_lib.FrameStack(config.observation.frames, config.region.num_points, self.design.state_size,
                                          config.observation.frame_stride)
+        self._aligned = (obs_lib.RegionHistory(config.observation.frames, config.observation.frame_stride,
+                                               config.region.num_points)
+                         if config.observation.history == "aligned" else None)
         self._reward_terms = reward_lib.weighted_terms(config.reward)
         self.counters = {"region_failures": 0, "region_recoveries": 0, "escapes": 0, "fallbacks": 0, "steps": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
@@ -184,7 +187,16 @@ class NavCore:
         self.record: StepRecord | None = None
         self.region = self._region(scan)  # not timed: part of reset
         polygon, state = self._frame(position, velocity)
-        return self._stack.reset(polygon, state)
+        obs = self._stack.reset(polygon, state)
+        if self._aligned is not None:
+            self._aligned.reset(self.region.boundary_xy, position)
+            obs = self._align(obs, position)
+        return obs
+
+    def _align(self, obs: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """``observation.history='aligned'``: re-read the older polygon blocks from ``position``."""
+        return self._aligned.rewrite(obs, self.region.boundary, position, self._inflation,
+                                     self.frame_rotation(position))
 
     def _region(self, scan: np.ndarray) -> Region:
         """The scan's convex region, or (designs that see the scan) its scan' polygon."""
@@ -381,6 +393,9 @@ class NavCore:
         t0 = time.perf_counter()
         polygon, state = self._frame(position, velocity)
         obs = self._stack.push(polygon, state)
+        if self._aligned is not None:
+            self._aligned.push(self.region.boundary_xy, position)
+            obs = self._align(obs, position)
         self.timers["observation"] += time.perf_counter() - t0
         return obs, reward, terms
 

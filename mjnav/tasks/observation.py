@@ -9,6 +9,10 @@ and a 13-value state block::
 
 The stack is ``[polygon_{t-2}, polygon_{t-1}, polygon_t, state_{t-2}, state_{t-1}, state_t]``
 (oldest first); at reset every slot holds the first frame.
+
+With ``observation.history='aligned'`` (not in the paper) the older polygon blocks are
+:func:`aligned_block` s: each older region read from the robot's current position along the
+current block's bearings (:class:`RegionHistory` keeps the regions in world coordinates).
 """
 
 from __future__ import annotations
@@ -20,12 +24,16 @@ import math
 import numpy as np
 from numba import njit
 
+from mjnav.geometry.polygon import _ray_polyline, points_in_polygon
+
 __all__ = [
     "DISTANCE_SCALE",
     "POLYGON_SIZE",
     "STATE_SIZE",
     "FrameStack",
     "Plan",
+    "RegionHistory",
+    "aligned_block",
     "observation_size",
     "polygon_block",
     "state_block",
@@ -222,3 +230,79 @@ class FrameStack:
     def observation(self) -> np.ndarray:
         """Stacked observation, float32: polygon blocks oldest first, then state blocks (a copy)."""
         return self._obs.copy()
+
+
+def aligned_block(
+    boundary: np.ndarray, older_xy: np.ndarray, position: np.ndarray, inflation: float, rotation: float = 0.0
+) -> np.ndarray:
+    """An older region's polygon block, read along the current region's bearings.
+
+    The paper's older blocks list each past region's own boundary points, seen from where the
+    robot was then; their bearings differ from frame to frame, so an approaching pedestrian does
+    not show as a change at a fixed input. Here the older region (a closed polyline in world
+    coordinates) is cut by rays from the robot's current position along the bearings of
+    ``boundary``: the same θ̂ as the current block, and r̂ the older region's extent along them.
+
+    Args:
+        boundary: ``(M, 2)`` current boundary points as (r [m], θ [rad]) (``Region.boundary``).
+        older_xy: ``(K, 2)`` the older region's boundary points in world coordinates, metres.
+        position: ``(2,)`` robot position now, metres (world).
+        inflation: R_inf in metres, added back to r as in :func:`polygon_block`.
+        rotation: The current frame's rotation (``observation.frame``), radians.
+
+    Returns:
+        ``(2M,)`` float64 block laid out as :func:`polygon_block` lays out ``boundary``. Every r is 0
+        when the robot now stands outside the older region (it left it, or its fallback polygon).
+    """
+    current = np.asarray(boundary, dtype=np.float64)
+    older = np.asarray(older_xy, dtype=np.float64)
+    origin = np.asarray(position, dtype=np.float64)
+    reread = current.copy()
+    if len(older) >= 3 and bool(points_in_polygon(origin, older)):
+        _reread_kernel(origin, older, current, reread)
+    else:
+        reread[:, 0] = 0.0
+    return polygon_block(reread, inflation, rotation)
+
+
+@njit(cache=True)
+def _reread_kernel(
+    origin: np.ndarray, older: np.ndarray, current: np.ndarray, out: np.ndarray
+) -> None:  # pragma: no cover - numba
+    direction = np.empty(2)
+    for i in range(current.shape[0]):
+        direction[0], direction[1] = math.cos(current[i, 1]), math.sin(current[i, 1])
+        t = _ray_polyline(origin, direction, older)
+        out[i, 0] = t if t < math.inf else 0.0
+
+
+class RegionHistory:
+    """The last regions' boundaries in world coordinates, for ``observation.history='aligned'``.
+
+    Keeps ``(frames - 1) * stride + 1`` boundaries (the newest last), the same frames as
+    :class:`FrameStack` picks, and rewrites the older polygon blocks of an observation.
+    """
+
+    def __init__(self, frames: int = 3, stride: int = 1, points: int = 60) -> None:
+        """History of ``frames`` frames ``stride`` control steps apart, ``points`` boundary points each."""
+        self._frames, self._stride, self._poly = frames, stride, 2 * points
+        self._history: list[np.ndarray] = []
+        self._length = (frames - 1) * stride + 1
+
+    def reset(self, boundary_xy: np.ndarray, position: np.ndarray) -> None:
+        """Fill the history with the first region (robot-frame ``boundary_xy`` at ``position``)."""
+        self._history = [np.asarray(boundary_xy, dtype=np.float64) + position] * self._length
+
+    def push(self, boundary_xy: np.ndarray, position: np.ndarray) -> None:
+        """Append this step's region (robot-frame ``boundary_xy`` at ``position``)."""
+        self._history = [*self._history[1:], np.asarray(boundary_xy, dtype=np.float64) + position]
+
+    def rewrite(
+        self, obs: np.ndarray, boundary: np.ndarray, position: np.ndarray, inflation: float, rotation: float
+    ) -> np.ndarray:
+        """Replace the older polygon blocks of ``obs`` (laid out as :class:`FrameStack`) in place and
+        return it; the newest block and the state blocks stay."""
+        older = self._history[:: self._stride][:-1]  # oldest first, without the newest
+        for k, xy in enumerate(older):
+            obs[k * self._poly : (k + 1) * self._poly] = aligned_block(boundary, xy, position, inflation, rotation)
+        return obs

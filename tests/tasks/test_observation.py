@@ -119,3 +119,62 @@ def test_frame_stride_is_a_task_option() -> None:
     assert load_task("stage5", ["observation.frame_stride=3"]).observation.frame_stride == 3
     with pytest.raises((ConfigError, ValueError), match="frame_stride"):
         load_task("stage5", ["observation.frame_stride=0"])
+
+
+def _square_seen_from(position: np.ndarray, half: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """A square region (world corners ±half) as a current boundary seen from ``position``:
+    (60 (r, θ) points at uneven bearings, the square's world corners)."""
+    corners = np.array([[half, half], [-half, half], [-half, -half], [half, -half]])
+    theta = np.sort(np.random.default_rng(0).uniform(0, 2 * np.pi, 60))
+    d = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    with np.errstate(divide="ignore"):
+        to_wall = (np.sign(d) * half - position) / d  # along each axis to the wall ahead
+    r = np.nanmin(np.where(np.isfinite(to_wall), to_wall, np.nan), axis=1)
+    return np.stack([r, theta], axis=1), corners
+
+
+def test_aligned_block_reads_a_region_that_stayed_put_as_the_current_one() -> None:
+    """A region that did not move in the world reads the same in an older slot as in the newest,
+    wherever the robot stands inside it: only motion of the region itself changes r̂."""
+    for position in (np.array([0.5, -0.3]), np.array([-1.2, 1.5])):
+        boundary, corners = _square_seen_from(position)
+        block = O.aligned_block(boundary, corners, position, 0.325, rotation=0.7)
+        np.testing.assert_allclose(block, O.polygon_block(boundary, 0.325, rotation=0.7), atol=1e-9)
+    boundary, corners = _square_seen_from(np.zeros(2))
+    shifted = O.aligned_block(boundary, corners + [0.3, 0.0], np.zeros(2), 0.325)  # the region moved +x
+    now = O.polygon_block(boundary, 0.325)
+    east = np.cos(boundary[:, 1]) > 0.9  # bearings through the +x side (θ ascending: same order)
+    assert east.any() and np.all(shifted[0::2][east] > now[0::2][east])
+    np.testing.assert_array_equal(shifted[1::2], now[1::2])  # same bearings
+
+
+def test_aligned_block_outside_the_older_region_reads_zero_extent() -> None:
+    """A robot that has left the older region (or a degenerate one) sees r = 0 there (r̂ = R_inf/10)."""
+    boundary, corners = _square_seen_from(np.array([0.0, 0.0]))
+    far = O.aligned_block(boundary, corners + 10.0, np.zeros(2), 0.325)
+    np.testing.assert_allclose(far[0::2], 0.0325)
+    assert np.all(O.aligned_block(boundary, corners[:2], np.zeros(2), 0.325)[0::2] == 0.0325)
+
+
+def test_aligned_history_in_the_environment() -> None:
+    """``observation.history=aligned``: reset fills three equal blocks; later, every older block
+    shares the newest block's bearings; a misspelt value is a named error."""
+    import gymnasium as gym
+
+    import mjnav  # noqa: F401  (registers the ids)
+    from mjnav.config import load_task
+    from mjnav.schema import ConfigError
+
+    env = gym.make("mjnav/Stage5-v1", overrides=["observation.history=aligned", "observation.frame=goal"])
+    obs, _ = env.reset(seed=1)
+    blocks = obs[:360].reshape(3, 120)
+    np.testing.assert_array_equal(blocks[0], blocks[2])
+    for _ in range(5):
+        obs, *_ = env.step(np.zeros(4))
+    blocks = obs[:360].reshape(3, 120)
+    np.testing.assert_array_equal(blocks[0, 1::2], blocks[2, 1::2])
+    np.testing.assert_array_equal(blocks[1, 1::2], blocks[2, 1::2])
+    assert not np.array_equal(blocks[0, 0::2], blocks[2, 0::2])
+    env.close()
+    with pytest.raises((ConfigError, ValueError), match="history"):
+        load_task("stage5", ["observation.history=current"])
