@@ -17,7 +17,9 @@ by :func:`mediapy.write_video` with imageio-ffmpeg's binary.
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
+import weakref
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -82,6 +84,11 @@ class OffscreenView:
         self._ctx = importlib.import_module(f"mujoco.{backend}").GLContext(width, height)
         self._ctx.make_current()
         self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        # Freed by close(), when the view is collected, or at interpreter exit before MuJoCo's own
+        # exit hook terminates the EGL display (registered later, so run earlier): an unclosed
+        # environment otherwise printed an EGLError traceback from GLContext.__del__ at exit.
+        self._free = weakref.finalize(self, _free_gl, self._con, self._ctx)
+        atexit.register(self._free)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         self.scene = mujoco.MjvScene(model, maxgeom=max_geom)
         self._opt, self._cam = mujoco.MjvOption(), mujoco.MjvCamera()
@@ -102,11 +109,16 @@ class OffscreenView:
         return image[::-1].copy()
 
     def close(self) -> None:
-        """Free the GL resources (explicitly: avoids noisy teardown at interpreter exit)."""
-        if self._con is not None:
-            self._con.free()
-            self._ctx.free()
-            self._con = None
+        """Free the GL resources; closing again does nothing."""
+        self._free()
+        atexit.unregister(self._free)
+        self._con = None
+
+
+def _free_gl(con: mujoco.MjrContext, ctx: Any) -> None:
+    """Free a MuJoCo render context, then its GL context."""
+    con.free()
+    ctx.free()
 
 
 class Captioner:

@@ -59,3 +59,21 @@ def test_render_config_rejects_bad_values(kwargs, match):
 
     with pytest.raises(ValueError, match=match):
         RenderConfig(**kwargs)
+
+
+@needs_gl
+def test_an_unclosed_rendering_environment_exits_quietly():
+    """A script that renders and never calls close() exits with status 0 and no GL traceback
+    (MuJoCo's exit hook used to terminate the EGL display before the context was freed)."""
+    import subprocess
+    import sys
+
+    script = (
+        "import gymnasium as gym, numpy as np, mjnav\n"
+        "env = gym.make('mjnav/Stage5-v1', render_mode='rgb_array', render_size=(64, 64), render_overlays=True)\n"
+        "env.reset(seed=0); env.step(np.zeros(4)); assert env.render().shape == (64, 64, 3)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                          env={**__import__("os").environ, "MUJOCO_GL": BACKEND})
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr and "Error" not in done.stderr, done.stderr
