@@ -1,5 +1,6 @@
-"""The lab scripts that compare actions on a shared crowd future (``docs/policies/experiments/``:
-``search.py``, outcome-verified search; ``group_pg.py``, policy gradient with scenario groups)."""
+"""Lab scripts of the crowd stages (``docs/policies/experiments/``): ``search.py``, outcome-verified
+search, and ``group_pg.py``, policy gradient with scenario groups, which compare actions on a shared
+crowd future; ``privileged_actor.py``, PPO whose actor reads the crowd's true state."""
 
 from __future__ import annotations
 
@@ -51,3 +52,22 @@ def test_group_pg_writes_checkpoints_that_evaluate_reads(monkeypatch: pytest.Mon
     saved = torch.load(tmp_path / "model_1.pt", map_location="cpu", weights_only=False)
     assert saved["iter"] == 1 and (tmp_path / "config.yaml").is_file()
     assert load_policy(str(tmp_path / "model_1.pt")) is not None
+
+
+def test_privileged_actor_starts_as_the_policy_it_widens(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    """``privileged_actor.py``: the widened checkpoint acts as INIT whatever the crowd inputs say,
+    and the patched runner config gives the actor the critic's privileged group."""
+    from mjnav.train import runner as runner_lib
+    from mjnav.train.config import load_train
+
+    module = _load("privileged_actor", monkeypatch)
+    widened = torch.load(str(module.widen(CHECKPOINT, tmp_path / "w.pt", 36)), weights_only=False)
+    before = torch.load(CHECKPOINT, weights_only=False)["actor_state_dict"]["mlp.0.weight"]
+    after = widened["actor_state_dict"]["mlp.0.weight"]
+    assert after.shape == (before.shape[0], before.shape[1] + 36)
+    obs = torch.rand(5, before.shape[1])
+    crowd = torch.randn(5, 36)
+    torch.testing.assert_close(torch.cat([obs, crowd], 1) @ after.T, obs @ before.T)
+    patched = module._actor_reads_the_crowd(runner_lib.rsl_config)
+    assert patched(load_train([]), "", privileged_critic=True)["obs_groups"]["actor"] == ["policy", "critic"]
+    assert patched(load_train([]), "", privileged_critic=False)["obs_groups"]["actor"] == ["policy"]
