@@ -285,7 +285,7 @@ class RegionHistory:
 
     def __init__(self, frames: int = 3, stride: int = 1, points: int = 60) -> None:
         """History of ``frames`` frames ``stride`` control steps apart, ``points`` boundary points each."""
-        self._frames, self._stride, self._poly = frames, stride, 2 * points
+        self._stride, self._poly = stride, 2 * points
         self._history: list[np.ndarray] = []
         self._length = (frames - 1) * stride + 1
 
