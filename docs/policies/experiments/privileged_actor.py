@@ -55,14 +55,11 @@ def evaluate(checkpoint: Path, episodes: int, seed_offset: int) -> float:
     import yaml
 
     import mjnav  # noqa: F401  (registers the ids)
-    from mjnav.eval.policies import policy_config, training_overrides
+    from mjnav.eval.policies import build_actor, policy_config, training_overrides
     from mjnav.eval.runner import held_out_seed
 
     weights = torch.load(str(checkpoint), map_location="cpu", weights_only=False)["actor_state_dict"]
-    layers = [torch.nn.Linear(*weights[f"mlp.{i}.weight"].shape[::-1]) for i in (0, 2, 4, 6)]
-    actor = torch.nn.Sequential(layers[0], torch.nn.ReLU(), layers[1], torch.nn.ReLU(), layers[2],
-                                torch.nn.Hardswish(), layers[3])
-    actor.load_state_dict({k.removeprefix("mlp."): v for k, v in weights.items() if k.startswith("mlp.")})
+    actor = build_actor(weights, ("relu", "relu", "hardswish"))
     stage = yaml.safe_load(policy_config(checkpoint).read_text())["run"]["task"].removeprefix("stage")
     env = gym.make(f"mjnav/Stage{stage}-v1", overrides=list(training_overrides(checkpoint)))
     wins = 0

@@ -36,7 +36,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from imitation import load_student as _actor  # noqa: E402  (the actor's mean: obs -> logits)
@@ -52,18 +51,20 @@ DELTAS = [np.array(d, np.float32) for d in (
 
 
 def config_path(ckpt: str | Path) -> Path:
-    """The checkpoint's config: ``NAME_config.yaml`` beside ``NAME_checkpoint.pt``, or the run's ``config.yaml``."""
-    path = Path(ckpt)
-    for config in (path.with_name(path.name.replace("_checkpoint.pt", "_config.yaml")),
-                   path.parent / "config.yaml"):
-        if config.is_file():
-            return config
-    raise FileNotFoundError(f"no config next to {ckpt}")
+    """The checkpoint's training config (:func:`mjnav.eval.policies.policy_config`); an error if none."""
+    from mjnav.eval.policies import policy_config
+
+    config = policy_config(ckpt)
+    if config is None:
+        raise FileNotFoundError(f"no config next to {ckpt}")
+    return config
 
 
 def _overrides(ckpt: str) -> list[str]:
     """The task overrides the checkpoint was trained with."""
-    return list((yaml.safe_load(config_path(ckpt).read_text())["run"] or {}).get("task_overrides") or [])
+    from mjnav.eval.policies import training_overrides
+
+    return list(training_overrides(ckpt))
 
 
 def play(env, seed: int, actor, offset: tuple[int, np.ndarray] | None = None, peds: list | None = None):
