@@ -154,6 +154,17 @@ def test_exported_scene_matches_live_sim(stage4_scene: Path):
     assert live.geom_conaffinity[scene].tolist() == [0, 0, 0]  # mjnav itself: pairs only
 
 
+def test_robot_contacts_are_not_doubled(stage4_scene: Path):
+    """With conaffinity 1 back on the scene, a pedestrian touching the robot still gives one contact (its pair)."""
+    model = mujoco.MjModel.from_xml_path(str(stage4_scene))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    data.mocap_pos[model.body("ped_00_").mocapid[0], :2] = data.body("robot_base").xpos[:2] + [0.3, 0.0]
+    mujoco.mj_forward(model, data)
+    pairs = [{int(c.geom1), int(c.geom2)} for c in data.contact[: data.ncon]]
+    assert pairs.count({model.geom("robot_disc").id, model.geom("ped_00_body").id}) == 1
+
+
 def test_scene_loads_with_mjspec_and_dm_control(stage4_scene: Path):
     """MjSpec compiles it and dm_control parses, compiles and re-exports it."""
     spec_model = mujoco.MjSpec.from_file(str(stage4_scene)).compile()
