@@ -9,7 +9,9 @@ Description:
 Action Space:
     ``Box(-inf, inf, (4,), float32)``: raw (α_s, β_s, α_l, β_l), squashed by a sigmoid inside
     (``design=design1|design2``: (v_x, v_y) before tanh; ``design3``: (α_l, β_l); see
-    :mod:`mjnav.tasks.design`).
+    :mod:`mjnav.tasks.design`). A raw value with ``|a| >= 38`` saturates exactly (α = 0 or 1); a
+    non-finite one (also a float64 beyond float32's range, as actions are rounded to float32) is a
+    ``ValueError``. Bounded in ``-v2``: ``Box(-1, 1)``, α = (a + 1)/2 (:mod:`mjnav.envs.bounded`).
 Observation Space:
     ``Box(-inf, inf, (399,), float32)``: 3 stacked frames of the 60-point polygon encoding and a
     13-value state block (spec §6); the designs keep 372 / 372 / 387 / 396 values.
@@ -32,6 +34,10 @@ Version History:
     v1: first release. 2026-12-02, same id: a failed region is recovered (``region.on_failure``,
     default ``recover``; ``paper`` restores the first release's behaviour) and ``design`` selects
     the paper's ablation designs (default ``ours``, unchanged).
+    v2 (2026-12-06, ``mjnav/StageK-v2`` next to each v1 id; v1 unchanged): bounded spaces for
+    standard RL clients (Stable-Baselines3, Gymnasium's ``RescaleAction``): actions
+    ``Box(-1, 1)`` = 2·(α_s, β_s, α_l, β_l) − 1, observations within bounds from the config;
+    the same episodes as v1 (:mod:`mjnav.envs.bounded`, ``docs/envs.md``).
 """
 
 from __future__ import annotations
