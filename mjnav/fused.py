@@ -34,6 +34,8 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from mjnav.control import dynamics
+
 __all__ = ["FusedStepper", "callbacks_installed", "fused_support"]
 
 _CALLBACK_GETTERS = tuple(getattr(mujoco, name) for name in dir(mujoco) if name.startswith("get_mjcb_"))
@@ -59,12 +61,9 @@ def _call_step(typingctx, fn, model, data):
     return types.void(types.uint64, types.uint64, types.uint64), codegen
 
 
-@numba.njit(cache=True)
-def _clamp(x: float, limit: float) -> float:
-    """``min(max(x, -limit), limit)`` with Python's semantics (NaN stays NaN)."""
-    lo = -limit
-    y = lo if lo > x else x  # noqa: FURB136 - numba's max/min may treat NaN differently
-    return limit if limit < y else y  # noqa: FURB136
+#: The tracking law and clamp of :mod:`mjnav.control.dynamics`, compiled for the kernel.
+_clamp = numba.njit(cache=True)(dynamics.clamp)
+_tracking_force = numba.njit(cache=True)(dynamics.tracking_force)
 
 
 @numba.njit(cache=True)
@@ -83,11 +82,8 @@ def _run(step, model, data, start, check, ncon, plan, track, mocap, rows, qpos, 
         for i in range(rows.shape[0]):
             mocap[rows[i], 0] = track[k, i, 0]
             mocap[rows[i], 1] = track[k, i, 1]
-        fx = plan[k, 0] + kv * (plan[k, 2] - qvel[index[0]])
-        fy = plan[k, 1] + kv * (plan[k, 3] - qvel[index[1]])
-        if kp != 0.0:
-            fx += kp * (plan[k, 4] - qpos[index[2]])
-            fy += kp * (plan[k, 5] - qpos[index[3]])
+        fx = _tracking_force(plan[k, 0], plan[k, 2], qvel[index[0]], plan[k, 4], qpos[index[2]], kv, kp)
+        fy = _tracking_force(plan[k, 1], plan[k, 3], qvel[index[1]], plan[k, 5], qpos[index[3]], kv, kp)
         ctrl[index[4]] = _clamp(mass * fx, fmax)
         ctrl[index[5]] = _clamp(mass * fy, fmax)
         _call_step(step, model, data)

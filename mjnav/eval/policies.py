@@ -10,7 +10,7 @@ Accepted specs:
 * a run directory (``runs/<name>`` or just ``<name>`` under ``runs/``): its ``policy.pt``, else
   its latest checkpoint;
 * a baseline name: ``mpc_goal``, ``teb``, ``dwa``, ``random_jerk`` (planners, see
-  :mod:`mjnav.baselines`) or ``random`` (random raw actions through the learned action path).
+  :mod:`mjnav.planners`) or ``random`` (random raw actions through the learned action path).
 
 Learned policies act through the normal action path, deterministically: the raw action is the
 network's mean (the environment applies the sigmoid). Every loaded policy is an :class:`Agent`:
@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines import PLANNERS, RandomActionPolicy, make_planner
+from mjnav.planners import PLANNERS, RandomActionPolicy, make_planner
 from mjnav.schema import ConfigError
 
 __all__ = [
@@ -49,7 +49,7 @@ if TYPE_CHECKING:
     import torch
 
     from mjnav.config import TaskConfig
-    from mjnav.tasks.core import Planner, PlannerInput
+    from mjnav.planners.base import Planner, PlannerInput
     from mjnav.tasks.nav import CrowdNavTask
 
 #: Evaluation action modes (see :func:`load_policy`).
@@ -63,7 +63,7 @@ class TimedPlanner:
     """Wraps a planner and records the wall time of each ``act`` call (seconds)."""
 
     def __init__(self, planner: Planner) -> None:
-        """Wrap ``planner`` (a :class:`mjnav.tasks.core.Planner`)."""
+        """Wrap ``planner`` (a :class:`mjnav.planners.base.Planner`)."""
         self.planner = planner
         self.times: list[float] = []
 
@@ -334,7 +334,7 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "me
             (the training Gaussian, noise seeded by the episode seed); the last two need a
             checkpoint.
         planner: ``["w_clearance=0.8", ...]`` parameter overrides of a baseline planner
-            (:func:`mjnav.baselines.make_planner`); rejected for anything else.
+            (:func:`mjnav.planners.make_planner`); rejected for anything else.
 
     Returns:
         The :class:`Agent`.

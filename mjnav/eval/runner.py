@@ -554,7 +554,7 @@ def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
     None for other baselines and run names.
     """
-    from mjnav.baselines import PLANNER_CONFIGS, planner_config
+    from mjnav.planners import PLANNER_CONFIGS, planner_config
 
     if spec in PLANNER_CONFIGS:
         text = json.dumps(dataclasses.asdict(planner_config(spec, planner)), sort_keys=True)

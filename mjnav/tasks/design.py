@@ -18,7 +18,7 @@ values of :func:`mjnav.tasks.observation.state_block` (``dθ, ρ, v_x, v_y, regi
 Design 4 the region flag (it has no region), Designs 1–2 keep ``ρ, v, dθ`` (paper eq. Design 1).
 Design 4 samples both points in the scan's coverage (rays against the closed polyline of the
 ``scan'`` points) and plans without a polygon. Velocity actions are followed by the jerk-limited
-velocity tracker the DWA and TEB baselines use (:func:`mjnav.baselines.tracking.track_velocity`).
+velocity tracker the DWA and TEB baselines use (:func:`mjnav.control.dynamics.track_velocity`).
 
 The velocity designs read their two axes as ``action.heading`` says, like Ours' and Design 3's
 angles: ``velocity`` (default) along and across the current velocity (world axes at rest), the

@@ -120,7 +120,7 @@ def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
                                                                monkeypatch: pytest.MonkeyPatch) -> None:
     """A baseline's records carry a hash of its resolved parameters: the same parameters match, a
     changed default (or an override) does not, so a re-tuned TEB is never reported with old episodes."""
-    from mjnav.baselines import PLANNER_CONFIGS, TebConfig
+    from mjnav.planners import PLANNER_CONFIGS, TebConfig
 
     assert policy_sha256("teb") == policy_sha256("teb") != policy_sha256("teb", ["d_inflation=0.9"])
     assert policy_sha256("dwa") != policy_sha256("teb") and policy_sha256("mpc_goal") is None

@@ -1,4 +1,4 @@
-"""Non-learned navigation baselines, each a :class:`mjnav.tasks.core.Planner`.
+"""Non-learned navigation baselines, each a :class:`mjnav.planners.base.Planner`.
 
 ``mpc_goal`` (convex region + MPC towards the goal), ``mpc_gap`` (the same towards open space near
 the goal direction), ``mpc_crowd`` (the same steered by the pedestrians' true motion: privileged, an
@@ -13,11 +13,11 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from mjnav.baselines.dwa import DwaConfig, DwaPlanner
-from mjnav.baselines.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
-from mjnav.baselines.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
-from mjnav.baselines.random import RandomActionPolicy, RandomPlanner
-from mjnav.baselines.teb import TebConfig, TebPlanner
+from mjnav.planners.dwa import DwaConfig, DwaPlanner
+from mjnav.planners.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
+from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
+from mjnav.planners.random import RandomActionPolicy, RandomPlanner
+from mjnav.planners.teb import TebConfig, TebPlanner
 from mjnav.schema import ConfigError, apply_overrides
 
 __all__ = [
@@ -39,7 +39,7 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:
-    from mjnav.tasks.core import Planner
+    from mjnav.planners.base import Planner
 
 #: Planner factories by policy name.
 PLANNERS: dict[str, Callable[[], Planner]] = {

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, brake, escape
+from mjnav.control.dynamics import Limits, brake, escape
 from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, radii
 from mjnav.control.guarded import GuardedMpc
 
@@ -48,7 +48,7 @@ __all__ = ["MpcGapConfig", "MpcGapPlanner", "MpcGoalPlanner", "reference_points"
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
     from mjnav.geometry.region import Region
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,7 +131,7 @@ def reference_points(
 
 
 class MpcGoalPlanner:
-    """Region + MPC heading for the goal, as a :class:`mjnav.tasks.core.Planner`."""
+    """Region + MPC heading for the goal, as a :class:`mjnav.planners.base.Planner`."""
 
     def __init__(self, safety: float = 0.9, gap: MpcGapConfig | None = None) -> None:
         """``safety``: fraction of the boundary distance for Q_l when the goal is outside; ``gap``:

@@ -1,8 +1,8 @@
 """``mpc_crowd``: the action layer steered by the pedestrians' true motion (privileged; not in the paper).
 
-The same pipeline as :mod:`mjnav.baselines.mpc_goal` (convex region, MPC, fallbacks), with ``Q_l``
+The same pipeline as :mod:`mjnav.planners.mpc_goal` (convex region, MPC, fallbacks), with ``Q_l``
 chosen from the simulator's ground truth: the pedestrians' positions and radii
-(:attr:`mjnav.tasks.core.PlannerInput.pedestrians`), their velocities estimated by differencing
+(:attr:`mjnav.planners.base.PlannerInput.pedestrians`), their velocities estimated by differencing
 the positions over one control period. A robot never has this; the planner is an *oracle*: it
 shows what the action layer reaches when the crowd's motion is known, an upper reference for a
 learned policy that must infer it from the scan.
@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.mpc_goal import MpcGoalPlanner
+from mjnav.planners.mpc_goal import MpcGoalPlanner
 from mjnav.control.action import boundary_distance, goal_inside
 from mjnav.tasks.privileged import CrowdTracker
 
@@ -43,7 +43,7 @@ __all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "best_long_point
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
     from mjnav.geometry.region import Region
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 @dataclasses.dataclass(frozen=True)
