@@ -122,7 +122,7 @@ def make_env(stage):
 def load_student(ckpt):
     import torch
 
-    from mjnav.eval.policies import build_actor
+    from mjnav.policy import build_actor
 
     state = torch.load(ckpt, map_location="cpu", weights_only=False)["actor_state_dict"]
     net = build_actor(state, ("relu", "relu", "hardswish")).eval()
@@ -174,7 +174,7 @@ def main(argv):
     elif mode == "fit":
         import torch
 
-        from mjnav.eval.policies import build_actor
+        from mjnav.policy import build_actor
 
         out_dir, base = Path(argv[1]), argv[2]
         data = [np.load(f) for f in argv[3:]]
