@@ -21,16 +21,18 @@ Units are SI; positions in the robot frame (the robot never rotates).
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numba import njit
 
 if TYPE_CHECKING:
-    from mjnav.config import TaskConfig
+    from mjnav.geometry.region import RegionConfig
+    from mjnav.schema import LidarConfig, RobotConfig, TimingConfig
 
 __all__ = [
     "Limits",
+    "TaskSections",
     "brake",
     "clamp",
     "coast",
@@ -43,6 +45,15 @@ __all__ = [
     "tracking_force",
     "transition_matrices",
 ]
+
+
+class TaskSections(Protocol):
+    """The sections of a :class:`mjnav.config.TaskConfig` that :meth:`Limits.from_task` reads."""
+
+    timing: TimingConfig
+    robot: RobotConfig
+    region: RegionConfig
+    lidar: LidarConfig
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +79,7 @@ class Limits:
     max_range: float = 10.0
 
     @classmethod
-    def from_task(cls, config: TaskConfig) -> Limits:
+    def from_task(cls, config: TaskSections) -> Limits:
         """Limits of a :class:`mjnav.config.TaskConfig`."""
         return cls(
             control_period=config.timing.control_period,
