@@ -25,7 +25,8 @@ register_envs()
 
 
 def __getattr__(name: str) -> Any:
-    """Import the heavy entry points (MuJoCo, numba kernels) only when used."""
+    """Import the heavy entry points only when used: ``import mjnav`` takes ~0.5 s, the environment
+    stack (MuJoCo, dm_control, numba kernels) ~2.3 s more (measured with ``python -X importtime``)."""
     if name == "make_env":
         from mjnav.envs.factory import make_env
 

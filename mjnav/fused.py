@@ -31,6 +31,7 @@ import mujoco
 import numba
 import numpy as np
 from llvmlite import ir
+from mujoco.introspect import ast_nodes, structs
 from numba import types
 from numba.extending import intrinsic
 
@@ -104,8 +105,6 @@ def _ctype(decl_type, cache: dict) -> type:
     if name in _PRIMITIVES:
         return _PRIMITIVES[name]
     if name not in cache:
-        from mujoco.introspect import structs
-
         fields = [(f.name, _ctype(f.type, cache)) for f in structs.STRUCTS[name].fields]
         cache[name] = type(name, (ctypes.Structure,), {"_fields_": fields})
     return cache[name]
@@ -113,7 +112,6 @@ def _ctype(decl_type, cache: dict) -> type:
 
 def _ncon_offset() -> int:
     """Byte offset of ``mjData.ncon`` from MuJoCo's struct description."""
-    from mujoco.introspect import ast_nodes
 
     return _ctype(ast_nodes.ValueType("mjData"), {}).ncon.offset
 

@@ -67,7 +67,7 @@ _EXTRA_ACTIVATIONS = {"hardswish": "Hardswish", "relu6": "ReLU6", "leaky_relu": 
 def make_activation(name: str) -> torch.nn.Module:
     """Activation module by name: rsl-rl's names plus ``hardswish``, ``relu6``, ``leaky_relu``."""
     import torch  # deferred: see load_actor
-    from rsl_rl.utils import resolve_nn_activation
+    from rsl_rl.utils import resolve_nn_activation  # deferred: ~5 s more after torch (-X importtime)
 
     key = name.lower()
     if key in _EXTRA_ACTIVATIONS:
@@ -204,7 +204,9 @@ def load_actor(path: Path, with_log_std: bool = False) -> tuple[torch.nn.Module,
     Raises:
         ValueError: Not a loadable policy, or a log-std asked of an exported policy.pt.
     """
-    import torch  # deferred: torch costs ~1 s of start-up that baseline-only evaluation never needs
+    # deferred here and in the other torch functions: torch costs ~3 s at import (python -X importtime),
+    # which evaluating only baselines never needs
+    import torch
 
     try:
         if is_checkpoint(path):

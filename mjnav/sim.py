@@ -31,9 +31,9 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from mjnav.entities import make_robot
 from mjnav.entities.arena import NavArena
 from mjnav.entities.crowd import Crowd
-from mjnav.entities import make_robot
 from mjnav.entities.robot import integrator_value
 from mjnav.fused import FusedStepper, callbacks_installed
 from mjnav.geometry.raycast import add_noise, polygon_segments, wall_segments

@@ -11,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import imageio_ffmpeg
+import mediapy
 import numpy as np
 
 from mjnav.viz.gl import select_gl_backend
@@ -41,9 +43,6 @@ def render_episode(
     Raises:
         mjnav.viz.gl.GlBackendError: No off-screen GL backend works.
     """
-    import imageio_ffmpeg
-    import mediapy
-
     cfg = config or RenderConfig()
     backend = select_gl_backend()
     base = env.unwrapped

@@ -645,8 +645,8 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
     workers = _integer(args, "workers", os.cpu_count() or 1, minimum=0)
     episodes = _integer(args, "episodes", 1000, minimum=1)
     offset = _integer(args, "seed_offset", 0, minimum=0)
-    from mjnav.policy import training_overrides
     from mjnav.eval.policies import ACTION_MODES
+    from mjnav.policy import training_overrides
 
     try:
         trained = training_overrides(args["policy"])

@@ -14,6 +14,9 @@ import numpy as np
 
 from mjnav.geometry.region import Region
 
+if typing.TYPE_CHECKING:
+    from mjnav.config import TaskConfig
+
 __all__ = ["Planner", "PlannerInput"]
 
 
@@ -49,8 +52,8 @@ class PlannerInput:
 class Planner(typing.Protocol):
     """A baseline controller: replaces the learned action layer, same episode and scoring."""
 
-    def reset(self, config, rng: np.random.Generator) -> None:
-        """Start an episode (config is the task's TaskConfig)."""
+    def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
+        """Start an episode of the task ``config`` with its own generator."""
 
     def act(self, inp: PlannerInput) -> np.ndarray:
         """Jerk (2,) in m/s³ to apply over the next control period."""

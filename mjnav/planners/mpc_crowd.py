@@ -34,8 +34,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.planners.mpc_goal import MpcGoalPlanner
 from mjnav.control.action import boundary_distance, goal_inside
+from mjnav.planners.mpc_goal import MpcGoalPlanner
 from mjnav.tasks.privileged import CrowdTracker
 
 __all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "best_long_point", "crowd_long_point", "crowd_scores"]
@@ -74,8 +74,6 @@ class MpcCrowdConfig:
 
     def __post_init__(self) -> None:
         """Reject values that would make the choice meaningless."""
-        from mjnav.schema import ConfigError
-
         positive = {"margin": self.margin, "horizon": self.horizon, "lag": self.lag}
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0.0):

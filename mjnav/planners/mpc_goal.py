@@ -39,8 +39,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.control.dynamics import Limits, brake, escape
 from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, radii
+from mjnav.control.dynamics import Limits, brake, escape
 from mjnav.control.guarded import GuardedMpc
 
 __all__ = ["MpcGapConfig", "MpcGapPlanner", "MpcGoalPlanner", "reference_points"]
@@ -69,8 +69,6 @@ class MpcGapConfig:
 
     def __post_init__(self) -> None:
         """Reject values that would make the choice meaningless."""
-        from mjnav.schema import ConfigError
-
         if not (math.isfinite(self.clearance_weight) and self.clearance_weight >= 0.0):
             raise ConfigError(f"clearance_weight: must be finite and >= 0, got {self.clearance_weight}")
         if not (math.isfinite(self.clearance_cap) and self.clearance_cap > 0.0):

@@ -9,16 +9,14 @@ composer task (:mod:`mjnav.tasks.nav`) only moves numbers between this and
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import math
 import time
-import typing
 
 import numpy as np
 
-from mjnav.control.dynamics import Limits, escape, track_velocity
 from mjnav.control.action import boundary_distance, goal_inside, heading_angle, map_action_values, radii
+from mjnav.control.dynamics import Limits, escape, track_velocity
 from mjnav.control.guarded import GuardedMpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, RegionFinder, scan_polygon

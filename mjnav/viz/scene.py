@@ -119,6 +119,8 @@ class Captioner:
 
     def __init__(self, width: int, bar: int = 26) -> None:
         """A ``bar``-pixel high caption strip for frames ``width`` pixels wide."""
+        # deferred: matplotlib costs ~1 s at import (python -X importtime) and the environment's own
+        # render() draws no caption
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 

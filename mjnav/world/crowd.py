@@ -25,8 +25,6 @@ from collections.abc import Sequence
 import numba
 import numpy as np
 
-from mjnav.schema import CrowdConfig
-
 __all__ = [
     "PedestrianModel",
     "RandomWalkModel",

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from mjnav.policy import policy_name, resolve_checkpoint
 from mjnav.eval.policies import load_policy
+from mjnav.policy import policy_name, resolve_checkpoint
 
 
 @pytest.fixture(scope="module")

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjnav.planners import PLANNERS, make_planner
-from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.config import load_task
+from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import compute_region
+from mjnav.planners import PLANNERS, make_planner
 from mjnav.planners.base import PlannerInput
 
 GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "mpc_crowd", "teb", "dwa")
