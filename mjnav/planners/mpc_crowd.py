@@ -36,6 +36,7 @@ import numpy as np
 
 from mjnav.control.action import boundary_distance, goal_inside
 from mjnav.planners.mpc_goal import MpcGoalPlanner
+from mjnav.schema import ConfigError
 from mjnav.tasks.privileged import CrowdTracker
 
 __all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "best_long_point", "crowd_long_point", "crowd_scores"]

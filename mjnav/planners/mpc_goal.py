@@ -42,6 +42,7 @@ import numpy as np
 from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, radii
 from mjnav.control.dynamics import Limits, brake, escape
 from mjnav.control.guarded import GuardedMpc
+from mjnav.schema import ConfigError
 
 __all__ = ["MpcGapConfig", "MpcGapPlanner", "MpcGoalPlanner", "reference_points"]
 
