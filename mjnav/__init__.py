@@ -11,7 +11,7 @@ from typing import Any
 
 if not os.environ.get("DISPLAY") and "MUJOCO_GL" not in os.environ:
     # Headless by default: without this dm_control tries GLFW first and warns on every import.
-    # EGL (Debian libegl1 + libgl1-mesa-dri) is the off-screen backend; mjnav.eval.gl still falls
+    # EGL (Debian libegl1 + libgl1-mesa-dri) is the off-screen backend; mjnav.viz.gl still falls
     # back to OSMesa for rendering because the marker says the choice was not the user's.
     os.environ["MUJOCO_GL"] = "egl"
     os.environ["MJNAV_GL_DEFAULTED"] = "1"
@@ -25,7 +25,8 @@ register_envs()
 
 
 def __getattr__(name: str) -> Any:
-    """Import the heavy entry points (MuJoCo, numba kernels) only when used."""
+    """Import the heavy entry points only when used: ``import mjnav`` takes ~0.5 s, the environment
+    stack (MuJoCo, dm_control, numba kernels) ~2.3 s more (measured with ``python -X importtime``)."""
     if name == "make_env":
         from mjnav.envs.factory import make_env
 

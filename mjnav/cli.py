@@ -50,8 +50,8 @@ def render(argv: Sequence[str] | None = None) -> int:
     [width=480] [height=480] [frames=N] [rays=false] [task.KEY=VALUE ...]``; ``seed`` is the held-out
     scenario index (as for evaluation). The GL backend is EGL, else OSMesa (``MUJOCO_GL`` overrides).
     """
-    from mjnav.eval.gl import GlBackendError, select_gl_backend
     from mjnav.schema import split_args
+    from mjnav.viz.gl import GlBackendError, select_gl_backend
 
     keys = ("task", "policy", "seed", "episode_seed", "out", "view", "width", "height", "frames", "rays")
     try:

@@ -32,6 +32,8 @@ from mjnav.schema import (
     apply_overrides,
     merge,
 )
+from mjnav.tasks.design import DESIGNS
+from mjnav.world import PEDESTRIAN_MODELS
 
 __all__ = ["ConfigError", "TaskConfig", "load_task", "task_dir"]
 
@@ -45,13 +47,13 @@ class TaskConfig:
         version: Behaviour version; bumped when results would change.
         collision: ``contact`` (MuJoCo contacts) or ``scan`` (authors: shrunk scan <= 0).
         design: State and action design of the paper's first ablation (``ours``, ``design1`` …
-            ``design4``; :mod:`mjnav.tasks.design`).
+            ``design4``): a name of :data:`mjnav.tasks.design.DESIGNS`.
     """
 
     name: str = "custom"
     version: int = 2  # 2: pedestrians keep layout.pedestrian_clearance from start and goal
     collision: Literal["contact", "scan"] = "contact"
-    design: Literal["ours", "design1", "design2", "design3", "design4"] = "ours"
+    design: str = "ours"
     arena: ArenaConfig = ArenaConfig()
     obstacles: ObstacleConfig = ObstacleConfig()
     crowd: CrowdConfig = CrowdConfig()
@@ -90,9 +92,16 @@ class TaskConfig:
         if self.region.inflation < self.robot.radius:
             raise ValueError(f"region.inflation: {self.region.inflation} m is below robot.radius "
                              f"({self.robot.radius} m): the free region would not keep the robot's disc clear")
+        self._check_registered()
         if self.lidar.beams < self.region.num_points:
             raise ValueError(f"lidar.beams: {self.lidar.beams} beams cannot give region.num_points "
                              f"({self.region.num_points}) boundary points")
+
+    def _check_registered(self) -> None:
+        """Raise ValueError, naming the key, for a design or pedestrian model no registry knows."""
+        for key, registry, name in (("design", DESIGNS, self.design), ("crowd.model", PEDESTRIAN_MODELS, self.crowd.model)):
+            if name not in registry:
+                raise ValueError(f"{key}: {registry.unknown_message(name)}")
 
     def check_explicit(self, data: dict[str, Any]) -> None:
         """Reject keys in ``data`` that set a derived copy to a value other than its source's.

@@ -31,8 +31,11 @@ import mujoco
 import numba
 import numpy as np
 from llvmlite import ir
+from mujoco.introspect import ast_nodes, structs
 from numba import types
 from numba.extending import intrinsic
+
+from mjnav.control import dynamics
 
 __all__ = ["FusedStepper", "callbacks_installed", "fused_support"]
 
@@ -59,12 +62,9 @@ def _call_step(typingctx, fn, model, data):
     return types.void(types.uint64, types.uint64, types.uint64), codegen
 
 
-@numba.njit(cache=True)
-def _clamp(x: float, limit: float) -> float:
-    """``min(max(x, -limit), limit)`` with Python's semantics (NaN stays NaN)."""
-    lo = -limit
-    y = lo if lo > x else x  # noqa: FURB136 - numba's max/min may treat NaN differently
-    return limit if limit < y else y  # noqa: FURB136
+#: The tracking law and clamp of :mod:`mjnav.control.dynamics`, compiled for the kernel.
+_clamp = numba.njit(cache=True)(dynamics.clamp)
+_tracking_force = numba.njit(cache=True)(dynamics.tracking_force)
 
 
 @numba.njit(cache=True)
@@ -83,11 +83,8 @@ def _run(step, model, data, start, check, ncon, plan, track, mocap, rows, qpos, 
         for i in range(rows.shape[0]):
             mocap[rows[i], 0] = track[k, i, 0]
             mocap[rows[i], 1] = track[k, i, 1]
-        fx = plan[k, 0] + kv * (plan[k, 2] - qvel[index[0]])
-        fy = plan[k, 1] + kv * (plan[k, 3] - qvel[index[1]])
-        if kp != 0.0:
-            fx += kp * (plan[k, 4] - qpos[index[2]])
-            fy += kp * (plan[k, 5] - qpos[index[3]])
+        fx = _tracking_force(plan[k, 0], plan[k, 2], qvel[index[0]], plan[k, 4], qpos[index[2]], kv, kp)
+        fy = _tracking_force(plan[k, 1], plan[k, 3], qvel[index[1]], plan[k, 5], qpos[index[3]], kv, kp)
         ctrl[index[4]] = _clamp(mass * fx, fmax)
         ctrl[index[5]] = _clamp(mass * fy, fmax)
         _call_step(step, model, data)
@@ -108,8 +105,6 @@ def _ctype(decl_type, cache: dict) -> type:
     if name in _PRIMITIVES:
         return _PRIMITIVES[name]
     if name not in cache:
-        from mujoco.introspect import structs
-
         fields = [(f.name, _ctype(f.type, cache)) for f in structs.STRUCTS[name].fields]
         cache[name] = type(name, (ctypes.Structure,), {"_fields_": fields})
     return cache[name]
@@ -117,7 +112,6 @@ def _ctype(decl_type, cache: dict) -> type:
 
 def _ncon_offset() -> int:
     """Byte offset of ``mjData.ncon`` from MuJoCo's struct description."""
-    from mujoco.introspect import ast_nodes
 
     return _ctype(ast_nodes.ValueType("mjData"), {}).ncon.offset
 

@@ -122,7 +122,8 @@ class CrowdConfig:
         slots: Compiled pedestrian slots (>= count); unused slots are parked.
         radius: Radius range [min, max], metres.
         speed: Speed range [min, max], m/s.
-        model: Motion model, ``random_walk`` (paper) or ``social_force``.
+        model: Motion model: a name of :data:`mjnav.world.PEDESTRIAN_MODELS` (``random_walk``, the
+            paper's, or ``social_force``; checked when the task config is built).
         yaw_rate: Random-walk heading rate bound, rad/s (uniform in ±yaw_rate).
         yaw_interval: Random walk: the yaw rate is re-drawn every this many seconds (proposal).
         height: Cylinder height, metres.
@@ -140,7 +141,7 @@ class CrowdConfig:
     slots: int = 0
     radius: tuple[float, float] = (0.2, 0.3)
     speed: tuple[float, float] = (0.3, 0.3)
-    model: Literal["random_walk", "social_force"] = "random_walk"
+    model: str = "random_walk"
     yaw_rate: float = math.pi / 6
     yaw_interval: float = 0.1
     height: float = 1.7
@@ -184,6 +185,8 @@ class RobotConfig:
         force_max: Actuator force limit per axis, N (feed-forward plus feedback).
         kv: Velocity feedback gain of the tracking controller, 1/s.
         kp: Position feedback gain of the tracking controller, 1/s².
+        model: The robot entity: a name of :data:`mjnav.entities.ROBOTS` (``omni``, the disc robot of
+            the paper; checked when the simulation is built).
     """
 
     radius: float = 0.225
@@ -195,6 +198,7 @@ class RobotConfig:
     force_max: float = 200.0
     kv: float = 10.0
     kp: float = 0.0
+    model: str = "omni"
 
     def __post_init__(self) -> None:
         for name in ("radius", "mass", "height", "v_max", "a_max", "j_max", "force_max"):
@@ -210,7 +214,8 @@ class LidarConfig:
         beams: Number of beams (beam 0 along +x, counter-clockwise).
         max_range: Range, metres; no hit reads max_range.
         noise_std: Gaussian noise per beam, metres (clipped to [0, max_range]).
-        backend: ``analytic`` (exact 2-D ray casting) or ``mujoco`` (MuJoCo ray casts in the world).
+        backend: A name of :data:`mjnav.sensors.LIDAR_BACKENDS`: ``analytic`` (exact 2-D ray
+            casting) or ``mujoco`` (MuJoCo ray casts in the world); checked when the simulation is built.
         height: Beam height above the floor, metres.
         rangefinders: Compile the 360 rangefinder sites and sensors into the task's robot (spec §2).
             Off by default: neither backend reads them (``mujoco`` casts with ``mj_multiRay``; the
@@ -222,7 +227,7 @@ class LidarConfig:
     beams: int = 360
     max_range: float = 10.0
     noise_std: float = 0.05
-    backend: Literal["analytic", "mujoco"] = "analytic"
+    backend: str = "analytic"
     height: float = 0.3
     rangefinders: bool = False
 

@@ -31,13 +31,14 @@ import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from mjnav.entities import make_robot
 from mjnav.entities.arena import NavArena
 from mjnav.entities.crowd import Crowd
-from mjnav.entities.robot import OmniRobot, integrator_value
+from mjnav.entities.robot import integrator_value
 from mjnav.fused import FusedStepper, callbacks_installed
 from mjnav.geometry.raycast import add_noise, polygon_segments, wall_segments
-from mjnav.sensors.lidar import AnalyticLidar, MujocoLidar
-from mjnav.world.crowd import make_pedestrian_model
+from mjnav.sensors import make_lidars
+from mjnav.world import make_pedestrian_model
 from mjnav.world.layout import Layout, sample_layout
 from mjnav.world.shapes import make_shape_bank
 
@@ -85,7 +86,7 @@ class NavSim:
         self.arena = NavArena(config.arena, config.obstacles, self.bank)
         if lidar_method == "sensor" and not rangefinders:
             raise ValueError("lidar_method='sensor' needs the rangefinders")
-        self.robot = OmniRobot(config.robot, config.lidar, rangefinders=rangefinders)
+        self.robot = make_robot(config.robot, config.lidar, rangefinders=rangefinders)
         self.arena.attach(self.robot)
         self.crowd = Crowd(config.crowd)
         self.crowd.attach_to(self.arena)
@@ -99,8 +100,7 @@ class NavSim:
         option.noslip_iterations = 0
         self.integrator = integrator
         self.pedestrians = make_pedestrian_model(config.crowd)
-        self.lidars = {"analytic": AnalyticLidar(config.lidar),
-                       "mujoco": MujocoLidar(config.lidar, self.robot, lidar_method)}
+        self.lidars = make_lidars(config.lidar, self.robot, lidar_method)
         self.lidar = self.lidars[config.lidar.backend]
         self._dt = config.timing.physics_timestep
         self._model = None

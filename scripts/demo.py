@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from mjnav.baselines.mpc_goal import MpcGoalPlanner
+from mjnav.planners.mpc_goal import MpcGoalPlanner
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.export import export_world
 from mjnav.schema import ConfigError, split_args

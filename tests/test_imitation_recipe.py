@@ -25,8 +25,8 @@ def _load(monkeypatch: pytest.MonkeyPatch):
 
 def test_teacher_action_maps_to_mpc_gaps_long_term_point(monkeypatch: pytest.MonkeyPatch) -> None:
     """Through map_action_values (goal heading) the teacher's logits give mpc_gap's Q_l."""
-    from mjnav.baselines.mpc_goal import MpcGapConfig, reference_points
     from mjnav.control.action import map_action_values, radii
+    from mjnav.planners.mpc_goal import MpcGapConfig, reference_points
 
     imitation = _load(monkeypatch)
     assert imitation.OVERRIDES[-2:] == ["action.heading=goal", "observation.frame=goal"]

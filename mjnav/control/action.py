@@ -39,6 +39,7 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
+from mjnav.control.dynamics import coast, jerk_travel
 from mjnav.geometry.polygon import (
     _point_in_halfplanes,
     _ray_circle,
@@ -265,7 +266,7 @@ def _reach_max(vx: float, vy: float, ax: float, ay: float, t: float, jerk: float
     """Farthest travel over t for the four jerk directions (velocity, acceleration, ± bisector)."""
     th_v, th_a = math.atan2(vy, vx), math.atan2(ay, ax)
     th_b = th_v + _wrap(th_a - th_v) / 2.0
-    bx, by, jt = vx * t + ax * t * t / 2.0, vy * t + ay * t * t / 2.0, jerk * t**3 / 6.0
+    bx, by, jt = coast(vx, ax, t), coast(vy, ay, t), jerk_travel(jerk, t)
     best = -1.0
     for th, sign in ((th_v, 1.0), (th_a, 1.0), (th_b, 1.0), (th_b, -1.0)):
         c, s = sign * math.cos(th), sign * math.sin(th)

@@ -5,7 +5,7 @@ a polygon (``keep_clear``: a failed QP brakes instead of dropping the polygon) a
 polygon is a recovered one (the robot is within R_inf of a return), plans with the per-axis
 velocity limit ``region.recover_speed``. With ``on_failure='paper'`` it is the plain spec §5 MPC.
 When there is no polygon at all the caller backs away instead
-(:func:`mjnav.baselines.tracking.escape`; :attr:`GuardedMpc.must_escape`).
+(:func:`mjnav.control.dynamics.escape`; :attr:`GuardedMpc.must_escape`).
 """
 
 from __future__ import annotations

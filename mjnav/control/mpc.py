@@ -38,6 +38,7 @@ from typing import Literal
 import daqp
 import numpy as np
 
+from mjnav.control.dynamics import integrate, rollout, transition_matrices
 from mjnav.control.qp import (
     INF,
     QpProblem,
@@ -47,7 +48,6 @@ from mjnav.control.qp import (
     make_backend,
     plan_violation,
     polygon_rows,
-    rollout,
 )
 from mjnav.geometry.polygon import halfplanes
 from mjnav.schema import check as _check
@@ -173,10 +173,7 @@ def simulate_triple_integrator(state: np.ndarray, jerk: np.ndarray, dt: float) -
         The ``(3, 2)`` state after ``dt``.
     """
     s = np.asarray(state, dtype=float)
-    j = np.asarray(jerk, dtype=float)
-    p = s[0] + s[1] * dt + s[2] * dt**2 / 2.0 + j * dt**3 / 6.0
-    v = s[1] + s[2] * dt + j * dt**2 / 2.0
-    return np.stack([p, v, s[2] + j * dt])
+    return np.stack(integrate(s[0], s[1], s[2], np.asarray(jerk, dtype=float), float(dt)))
 
 
 def prediction_matrices(horizon: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -189,8 +186,7 @@ def prediction_matrices(horizon: int, dt: float) -> tuple[np.ndarray, np.ndarray
     Returns:
         ``phi`` ``(N, 3, 3)`` and ``gamma`` ``(3, N, N)`` (rows p, v, a; lower triangular).
     """
-    f = np.array([[1.0, dt, dt**2 / 2.0], [0.0, 1.0, dt], [0.0, 0.0, 1.0]])
-    g = np.array([dt**3 / 6.0, dt**2 / 2.0, dt])
+    f, g = transition_matrices(dt)
     phi, gamma = np.empty((horizon, 3, 3)), np.zeros((3, horizon, horizon))
     power = np.eye(3)
     for k in range(horizon):

@@ -1,8 +1,8 @@
 """The condensed MPC's QP (:mod:`mjnav.control.mpc`): assembly kernels and solver backends.
 
 :func:`assemble` (numba) builds the linear cost, the velocity/acceleration row bounds and the
-polygon rows that survive the reachability test for one step; :func:`plan_violation` and
-:func:`rollout` check and expand a plan.
+polygon rows that survive the reachability test for one step; :func:`plan_violation` checks a
+plan (its rollout: :func:`mjnav.control.dynamics.rollout`).
 
 Every backend solves
 
@@ -35,6 +35,8 @@ import quadprog
 from numba import njit
 from scipy import sparse
 
+from mjnav.control.dynamics import coast, jerk_travel, rollout_kernel
+
 __all__ = [
     "DaqpBackend",
     "OsqpBackend",
@@ -46,7 +48,6 @@ __all__ = [
     "make_backend",
     "plan_violation",
     "polygon_rows",
-    "rollout",
 ]
 
 INF = 1e30  # DAQP's infinity; also used for inert OSQP rows
@@ -302,38 +303,6 @@ def make_backend(
 
 
 @njit(cache=True)
-def rollout(s: np.ndarray, jerks: np.ndarray, dt: float) -> np.ndarray:  # pragma: no cover - numba
-    """Exact states under piecewise-constant jerks.
-
-    Args:
-        s: ``(3, 2)`` initial state, rows p [m], v [m/s], a [m/s²].
-        jerks: ``(N, 2)`` jerks, m/s³.
-        dt: Step, s.
-
-    Returns:
-        ``(N, 3, 2)`` states x_1..x_N (rows p, v, a).
-    """
-    return _rollout(s, jerks, dt)
-
-
-@njit(cache=True)
-def _rollout(s: np.ndarray, jerks: np.ndarray, dt: float) -> np.ndarray:  # pragma: no cover - numba
-    # Kernel for jitted callers; Python calls go through `rollout` (numba cache boxing issue, see
-    # mjnav.geometry.polygon.monotone_chain).
-    n = jerks.shape[0]
-    out = np.empty((n, 3, 2))
-    for d in range(2):
-        p, v, a = s[0, d], s[1, d], s[2, d]
-        for k in range(n):
-            j = jerks[k, d]
-            p = p + v * dt + a * dt * dt / 2.0 + j * dt**3 / 6.0
-            v = v + a * dt + j * dt * dt / 2.0
-            a = a + j * dt
-            out[k, 0, d], out[k, 1, d], out[k, 2, d] = p, v, a
-    return out
-
-
-@njit(cache=True)
 def plan_violation(
     s: np.ndarray,
     x: np.ndarray,
@@ -357,7 +326,7 @@ def plan_violation(
     Returns:
         ``max`` over k, axes and rows of ``|u|-j_max``, ``|v|-v_max``, ``|a|-a_max``, ``n·p-c`` (SI).
     """
-    traj = _rollout(s, np.stack((x[:steps], x[steps : 2 * steps]), axis=1), dt)
+    traj = rollout_kernel(s, np.stack((x[:steps], x[steps : 2 * steps]), axis=1), dt)
     worst = -np.inf
     for k in range(steps):
         for d in range(2):
@@ -485,13 +454,13 @@ def _polygon_rows_into(
     ``slot``, ``nx`` and ``ny`` may be empty: not recorded); returns the number of rows kept."""
     steps, count, n = free.shape[0], normals.shape[0], rows.shape[1]
     j_max, v_max, a_max = limits[0], limits[1], limits[2]
-    per_step = v_max * dt + a_max * dt * dt / 2.0 + j_max * dt**3 / 6.0
+    per_step = coast(v_max, a_max, dt) + jerk_travel(j_max, dt)
     lo_box, hi_box = np.empty(2), np.empty(2)
     r = 0
     for k in range(steps):
         reach = j_max * np.sum(gp[k, : k + 1])
         for d in range(2):
-            vel = abs(s[1, d] * dt + s[2, d] * dt * dt / 2.0) + j_max * dt**3 / 6.0 + k * per_step
+            vel = abs(coast(s[1, d], s[2, d], dt)) + jerk_travel(j_max, dt) + k * per_step
             lo_box[d] = max(free[k, 0, d] - reach, s[0, d] - vel)
             hi_box[d] = min(free[k, 0, d] + reach, s[0, d] + vel)
             if lo_box[d] > hi_box[d]:  # limits already violated: keep the jerk box only

@@ -41,6 +41,7 @@ import mujoco
 import numpy as np
 from dm_control import composer, mjcf
 
+from mjnav.control.dynamics import clamp, integrate, tracking_force, transition_matrices
 from mjnav.geometry.raycast import beam_angles
 from mjnav.schema import LidarConfig, RobotConfig
 
@@ -226,9 +227,8 @@ class OmniRobot(composer.Entity):
         self._t = 0.0
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Reference (p, v, a) at time ``t`` into the period (exact triple integrator)."""
-        p, v, a, j = self._p, self._v, self._a, self._j
-        return (p + v * t + a * (t * t / 2) + j * (t**3 / 6), v + a * t + j * (t * t / 2), a + j * t)
+        """Reference (p, v, a) at time ``t`` into the period (:func:`mjnav.control.dynamics.integrate`)."""
+        return integrate(self._p, self._v, self._a, self._j, float(t))
 
     def plan(self, physics: mjcf.Physics) -> list[list[float]]:
         """The period's plan, made on first use: per substep ``[ux, uy, vx, vy, px, py]``.
@@ -292,15 +292,12 @@ class OmniRobot(composer.Entity):
         _, qpos, qvel, ctrl = views
         m, kv, kp, fmax = self._gains
         d0, d1 = self._dof_list
-        fx = ux + kv * (vx - qvel.item(d0))  # Python floats: cheaper than numpy scalars, same IEEE results
-        fy = uy + kv * (vy - qvel.item(d1))
-        if kp:
-            q0, q1 = self._qpos_list
-            fx += kp * (px - qpos.item(q0))
-            fy += kp * (py - qpos.item(q1))
+        q0, q1 = self._qpos_list  # Python floats: cheaper than numpy scalars, same IEEE results
+        fx = tracking_force(ux, vx, qvel.item(d0), px, qpos.item(q0), kv, kp)
+        fy = tracking_force(uy, vy, qvel.item(d1), py, qpos.item(q1), kv, kp)
         c0, c1 = self._ctrl_list
-        ctrl[c0] = min(max(m * fx, -fmax), fmax)
-        ctrl[c1] = min(max(m * fy, -fmax), fmax)
+        ctrl[c0] = clamp(m * fx, fmax)
+        ctrl[c1] = clamp(m * fy, fmax)
         self._k = k = k + 1
         self._t = k * dt
 
@@ -326,7 +323,8 @@ def _plan_matrix(n: int, dt: float, c: float) -> np.ndarray:
     pos_from_u = np.where(lag > 0, lag - 1 + c, 0.0) * dt * dt  # p_k = p_0 + k·dt·v_0 + dt²·Σ ...
     end = np.vstack([np.full(n, dt), dt * dt * (n - k - 1 + c)])
     period = n * dt
-    target_from_aj = np.array([[period, period**2 / 2], [period**2 / 2, period**3 / 6]])  # rows Δv, Δp
+    f, g = transition_matrices(period)
+    target_from_aj = np.array([[f[1, 2], g[1]], [f[0, 2], g[0]]])  # rows Δv, Δp from (a, jerk)
     u_from_aj = np.column_stack([np.ones(n), k * dt + dt / 2])
     u_from_aj = u_from_aj + np.linalg.pinv(end) @ (target_from_aj - end @ u_from_aj)
     blocks = np.zeros((n, 3, 4))

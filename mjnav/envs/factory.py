@@ -8,6 +8,7 @@ from dm_control import composer
 
 from mjnav.config import TaskConfig, load_task
 from mjnav.envs.environment import NavEnvironment
+from mjnav.schema import apply_overrides
 from mjnav.tasks.nav import CrowdNavTask
 
 __all__ = ["make_env", "resolve_config"]
@@ -16,8 +17,6 @@ __all__ = ["make_env", "resolve_config"]
 def resolve_config(task: str | Path | TaskConfig, overrides: dict | list[str] | None = None) -> TaskConfig:
     """A :class:`TaskConfig` from a stage name, a YAML path or a config, with dotted overrides."""
     if isinstance(task, TaskConfig):
-        from mjnav.schema import apply_overrides
-
         return apply_overrides(task, overrides or {})
     return load_task(task, overrides)
 

@@ -50,6 +50,8 @@ import numpy as np
 from mjnav.config import TaskConfig
 from mjnav.envs.factory import make_env, resolve_config
 from mjnav.tasks.privileged import critic_size
+from mjnav.viz.gl import select_gl_backend
+from mjnav.viz.scene import OffscreenView, RenderConfig, camera_ids, make_drawer
 
 __all__ = ["NavGymEnv", "make_gym_env", "make_registered"]
 
@@ -99,8 +101,6 @@ class NavGymEnv(gym.Env):
             raise ValueError(f"render_mode: expected None or one of {modes}, got {render_mode!r}")
         if render_camera not in _CAMERAS:
             raise ValueError(f"render_camera: expected one of {_CAMERAS}, got {render_camera!r}")
-        from mjnav.eval.render import RenderConfig
-
         self._render_config = RenderConfig(render_camera, *(int(x) for x in render_size))  # checks the size
         self._render_overlays = bool(render_overlays)
         self._view = None
@@ -184,18 +184,15 @@ class NavGymEnv(gym.Env):
 
     def render(self) -> np.ndarray | None:
         """An RGB frame (height, width, 3) uint8 of the current state with ``render_mode="rgb_array"``
-        (needs an off-screen GL backend, :func:`mjnav.eval.gl.select_gl_backend`); None otherwise."""
+        (needs an off-screen GL backend, :func:`mjnav.viz.gl.select_gl_backend`); None otherwise."""
         if self.render_mode is None:
             gym.logger.warn("render() without render_mode: pass render_mode='rgb_array' to the constructor or make()")
             return None
-        from mjnav.eval.gl import select_gl_backend
-        from mjnav.eval.render import OffscreenView, camera_ids, make_drawer
-
         cfg = self._render_config
         if self._view is None:
             self._view = OffscreenView(self.physics.model.ptr, cfg.width, cfg.height, select_gl_backend())
-        draw = make_drawer(self, rays=False) if self._render_overlays and self.task.layout is not None else None
-        return self._view.render(self.physics.data.ptr, camera_ids(self, cfg.view)[0], draw)
+        draw = make_drawer(self.task, self.physics, rays=False) if self._render_overlays and self.task.layout is not None else None
+        return self._view.render(self.physics.data.ptr, camera_ids(self.task, self.physics, cfg.view)[0], draw)
 
     def close(self) -> None:
         """Free the physics and the renderer; closing again does nothing (Gymnasium's contract)."""

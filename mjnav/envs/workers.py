@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing as mp
 import os
+import signal
 import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -157,8 +158,6 @@ def _outcome_code(info: dict, terminated: bool, truncated: bool) -> int:
 
 def _worker_main(conn: Connection, env_fn: EnvFn, indices: range, seed: int) -> None:
     """Worker loop: build the envs, report their spaces, then serve commands until ``close``."""
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's business
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # the main process closes us (or we see EOF)
     group, shm = None, None

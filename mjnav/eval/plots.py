@@ -22,6 +22,7 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt
 import numpy as np
+import yaml
 from matplotlib.patches import Circle, Polygon, Rectangle
 
 __all__ = ["draw_episode", "load_scalars", "plot_episode", "plot_grid", "plot_learning_curve",
@@ -154,6 +155,8 @@ def plot_grid(panels: Sequence[Sequence[dict]], out: str | Path, dt: float = 0.1
 
 def load_scalars(run_dir: str | Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """All scalars of a run's TensorBoard event files: tag → (steps, values), sorted by step."""
+    # deferred: tensorboard's event reader costs ~0.3 s at import (python -X importtime), needed
+    # only by the training-curve plots
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     series: dict[str, dict[int, float]] = {}
@@ -169,8 +172,6 @@ def _steps_per_iteration(run_dir: Path) -> int | None:
     config = run_dir / "config.yaml"
     if not config.exists():
         return None
-    import yaml
-
     train = (yaml.safe_load(config.read_text()) or {}).get("train") or {}
     if "num_envs" in train and "steps_per_env" in train:
         return int(train["num_envs"]) * int(train["steps_per_env"])

@@ -93,7 +93,7 @@ class EvalSpec:
         overrides: Dotted task overrides given for this evaluation (``["crowd.count=25"]``).
         workers: Processes (0 or 1 = in this process).
         policy_overrides: The task overrides the policy was trained with
-            (:func:`mjnav.eval.policies.training_overrides`); ``overrides`` win over them.
+            (:func:`mjnav.policy.training_overrides`); ``overrides`` win over them.
         action: ``mean``, ``expected`` or ``sample`` (:func:`mjnav.eval.policies.load_policy`).
         planner: Parameter overrides of a baseline planner (``["w_clearance=0.8"]``, from
             ``planner.w_clearance=0.8`` on the command line).
@@ -263,7 +263,7 @@ def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGy
     from mjnav.envs.gym_env import NavGymEnv
     from mjnav.eval.policies import load_policy
 
-    from mjnav.eval.policies import training_overrides
+    from mjnav.policy import training_overrides
 
     policy = args.get("policy", "mpc_goal")
     env = NavGymEnv(args.get("task", "stage6"), overrides=[*training_overrides(policy), *overrides] or None, seed=0)
@@ -429,7 +429,7 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
 def _common(spec: EvalSpec) -> dict[str, Any]:
     """The fields every JSONL record of evaluation ``spec`` shares (``_COMMON_KEYS``)."""
     from mjnav.envs.factory import resolve_config
-    from mjnav.eval.policies import policy_name
+    from mjnav.policy import policy_name
 
     config = resolve_config(spec.task, spec.task_overrides or None)
     return {"task": config.name, "task_version": config.version, "policy": policy_name(spec.policy),
@@ -554,9 +554,9 @@ def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
     None for other baselines and run names.
     """
-    from mjnav.baselines import PLANNER_CONFIGS, planner_config
+    from mjnav.planners import PLANNERS, planner_config
 
-    if spec in PLANNER_CONFIGS:
+    if spec in PLANNERS and PLANNERS.get(spec).config_class is not None:
         text = json.dumps(dataclasses.asdict(planner_config(spec, planner)), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
     path = Path(spec)
@@ -645,7 +645,8 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
     workers = _integer(args, "workers", os.cpu_count() or 1, minimum=0)
     episodes = _integer(args, "episodes", 1000, minimum=1)
     offset = _integer(args, "seed_offset", 0, minimum=0)
-    from mjnav.eval.policies import ACTION_MODES, training_overrides
+    from mjnav.eval.policies import ACTION_MODES
+    from mjnav.policy import training_overrides
 
     try:
         trained = training_overrides(args["policy"])

@@ -198,8 +198,8 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     Raises:
         ValueError: A name in ``methods`` is not one of the table's.
     """
-    from mjnav.eval.policies import BASELINES, training_overrides
     from mjnav.eval.runner import EvalSpec, evaluate, settle_from_contact
+    from mjnav.policy import BASELINES, training_overrides
 
     chosen = _chosen_methods(TABLES[table], methods)
     rows = []

@@ -37,7 +37,7 @@ Conventions and documented choices:
   smallest range exceeds it by ``recover_gap``. The levels are fixed, not taken from the current
   clearance, so a robot cannot ratchet closer step by step. Below the floor there is no polygon
   and the task backs the robot away from its nearest returns at ``escape_speed``
-  (:func:`mjnav.baselines.tracking.escape`) instead of planning unconstrained; a braking MPC
+  (:func:`mjnav.control.dynamics.escape`) instead of planning unconstrained; a braking MPC
   had left it creeping in at ~1 cm/s.
 
 The pipeline is jitted with numba (``cache=True``); call :func:`warm_up` once at start-up to
@@ -95,7 +95,7 @@ class RegionConfig:
         recover_floor: Second and last inflation of the recovery ladder, metres.
         recover_gap: A ladder level is tried only while the smallest range exceeds it by this, metres.
         escape_speed: Below the last level the robot backs away from its nearest returns at this
-            speed (m/s) instead of planning (:func:`mjnav.baselines.tracking.escape`).
+            speed (m/s) instead of planning (:func:`mjnav.control.dynamics.escape`).
         recover_speed: Per-axis velocity limit of the MPC while it plans in a recovered region, m/s
             (a faster robot brakes through the MPC's fallback ladder first).
     """

@@ -14,7 +14,7 @@ can be compared exactly.
   (``ray_000`` ...) with ``mj_sensorPos``. Both read the current kinematics (``geom_xpos``),
   so call them after the physics is synchronised (``mj_step1``/``mj_kinematics``/``mj_forward``).
 
-:func:`make_lidar` picks the backend named by ``LidarConfig.backend``.
+:func:`mjnav.sensors.make_lidar` picks the backend named by ``LidarConfig.backend``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from mjnav.schema import LidarConfig
 if TYPE_CHECKING:
     from mjnav.entities.robot import OmniRobot
 
-__all__ = ["AnalyticLidar", "Lidar", "MujocoLidar", "make_lidar"]
+__all__ = ["AnalyticLidar", "Lidar", "MujocoLidar"]
 
 _NO_SEGMENTS = np.zeros((0, 4))
 _NO_CIRCLES = np.zeros((0, 3))
@@ -162,25 +162,3 @@ class MujocoLidar:
             dist = data.sensordata[self._sensor_slice].copy()
         dist[(dist < 0) | (dist > self._max_range)] = self._max_range
         return dist
-
-
-def make_lidar(
-    config: LidarConfig, robot: OmniRobot | None = None, method: Literal["multiray", "sensor"] = "multiray"
-) -> AnalyticLidar | MujocoLidar:
-    """The backend named by ``config.backend``.
-
-    Args:
-        config: LiDAR config.
-        robot: The robot entity (required by the ``mujoco`` backend).
-        method: ``mujoco`` backend evaluation method.
-
-    Returns:
-        An :class:`AnalyticLidar` or a :class:`MujocoLidar`.
-    """
-    if config.backend == "analytic":
-        return AnalyticLidar(config)
-    if config.backend == "mujoco":
-        if robot is None:
-            raise ValueError("the mujoco LiDAR backend needs the robot entity")
-        return MujocoLidar(config, robot, method)
-    raise ValueError(f"lidar.backend {config.backend!r}: use 'analytic' or 'mujoco'")

@@ -9,24 +9,23 @@ composer task (:mod:`mjnav.tasks.nav`) only moves numbers between this and
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import math
 import time
-import typing
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, escape, track_velocity
 from mjnav.control.action import boundary_distance, goal_inside, heading_angle, map_action_values, radii
+from mjnav.control.dynamics import Limits, escape, track_velocity
 from mjnav.control.guarded import GuardedMpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, RegionFinder, scan_polygon
+from mjnav.planners.base import Planner, PlannerInput
 from mjnav.tasks import observation as obs_lib
 from mjnav.tasks import reward as reward_lib
 from mjnav.tasks.design import get_design
 
-__all__ = ["NavCore", "Outcome", "Planner", "PlannerInput", "StepRecord", "sigmoid"]
+__all__ = ["NavCore", "Outcome", "StepRecord", "sigmoid"]
 
 _ORIGIN = np.zeros(2)
 
@@ -48,45 +47,6 @@ class Outcome(enum.Enum):
     def done(self) -> bool:
         """Any outcome but running ends the episode."""
         return self is not Outcome.RUNNING
-
-
-@dataclasses.dataclass(frozen=True)
-class PlannerInput:
-    """What a non-learned planner (baseline) sees at the start of a control step.
-
-    Attributes:
-        scan: LiDAR ranges as the robot sees them (noisy), metres.
-        angles: Beam angles, radians (beam 0 along +x, CCW).
-        position: Robot position, world frame, metres.
-        velocity: Robot velocity, m/s.
-        acceleration: Robot (reference) acceleration, m/s².
-        goal: Goal, world frame, metres.
-        region: The free-space polygon of this scan (robot frame).
-        time: Time since the episode start, seconds.
-        pedestrians: (P, 3) ``[x, y, r]`` of the pedestrians, world frame, metres: the simulator's
-            ground truth, which a robot does not have; only privileged planners (``mpc_crowd``)
-            read it.
-    """
-
-    scan: np.ndarray
-    angles: np.ndarray
-    position: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    goal: np.ndarray
-    region: Region
-    time: float
-    pedestrians: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
-
-
-class Planner(typing.Protocol):
-    """A baseline controller: replaces the learned action layer, same episode and scoring."""
-
-    def reset(self, config, rng: np.random.Generator) -> None:
-        """Start an episode (config is the task's TaskConfig)."""
-
-    def act(self, inp: PlannerInput) -> np.ndarray:
-        """Jerk (2,) in m/s³ to apply over the next control period."""
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:

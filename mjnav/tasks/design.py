@@ -18,7 +18,7 @@ values of :func:`mjnav.tasks.observation.state_block` (``dθ, ρ, v_x, v_y, regi
 Design 4 the region flag (it has no region), Designs 1–2 keep ``ρ, v, dθ`` (paper eq. Design 1).
 Design 4 samples both points in the scan's coverage (rays against the closed polyline of the
 ``scan'`` points) and plans without a polygon. Velocity actions are followed by the jerk-limited
-velocity tracker the DWA and TEB baselines use (:func:`mjnav.baselines.tracking.track_velocity`).
+velocity tracker the DWA and TEB baselines use (:func:`mjnav.control.dynamics.track_velocity`).
 
 The velocity designs read their two axes as ``action.heading`` says, like Ours' and Design 3's
 angles: ``velocity`` (default) along and across the current velocity (world axes at rest), the
@@ -26,6 +26,10 @@ frame their only goal term dθ is measured in; ``absolute`` as world axes, the p
 taken literally. In world axes the goal direction is heading(v) + π·dθ, which the network has to
 compose from v and dθ, and at rest dθ says nothing (the first Design 1 run learned nothing in
 0.87M steps with it).
+
+Designs are looked up by name in :data:`DESIGNS` (entry-point group ``mjnav.designs``); a new one
+combines the observation, state columns and action kinds above: ``DESIGNS.register("mine",
+lambda: Design("mine", "region", (0, 1, 2, 3), "points", 4, True))``.
 """
 
 from __future__ import annotations
@@ -33,9 +37,9 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-__all__ = ["DESIGNS", "Design", "get_design"]
+from mjnav.registry import Registry
 
-DesignName = Literal["ours", "design1", "design2", "design3", "design4"]
+__all__ = ["DESIGNS", "Design", "get_design"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,23 +68,25 @@ class Design:
         return len(self.state_columns)
 
 
+#: Designs by ``design`` name; a factory takes no arguments and returns the :class:`Design`.
+DESIGNS: Registry[Design] = Registry("design", "mjnav.designs")
 _ALL = tuple(range(13))
-DESIGNS: dict[str, Design] = {
-    "ours": Design("ours", "region", _ALL, "points", 4, True),
-    "design1": Design("design1", "scan", (0, 1, 2, 3), "velocity", 2, False),
-    "design2": Design("design2", "region", (0, 1, 2, 3), "velocity", 2, False),
-    "design3": Design("design3", "region", (0, 1, 2, 3, 4, 6, 8, 10, 12), "long_point", 2, True),
-    "design4": Design("design4", "scan", (0, 1, 2, 3, *range(5, 13)), "points", 4, False),
-}
+for _design in (
+    Design("ours", "region", _ALL, "points", 4, True),
+    Design("design1", "scan", (0, 1, 2, 3), "velocity", 2, False),
+    Design("design2", "region", (0, 1, 2, 3), "velocity", 2, False),
+    Design("design3", "region", (0, 1, 2, 3, 4, 6, 8, 10, 12), "long_point", 2, True),
+    Design("design4", "scan", (0, 1, 2, 3, *range(5, 13)), "points", 4, False),
+):
+    DESIGNS.register(_design.name, (lambda d=_design: d), source="builtin")
 
 
 def get_design(name: str) -> Design:
     """The :class:`Design` called ``name``.
 
     Raises:
-        ValueError: For an unknown name (the message lists the known ones).
+        ValueError: For an unknown name (the message lists the known ones and the closest).
     """
-    try:
-        return DESIGNS[name]
-    except KeyError:
-        raise ValueError(f"design: unknown design {name!r}, expected one of {sorted(DESIGNS)}") from None
+    if name not in DESIGNS:
+        raise ValueError(f"design: {DESIGNS.unknown_message(name)}")
+    return DESIGNS.make(name)

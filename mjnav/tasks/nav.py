@@ -45,7 +45,7 @@ class CrowdNavTask(composer.Task):
         self.episode_seed: int | None = None
         self.layout = None
         self.contact_kind: str | None = None  # wall, obstacle or pedestrian after a contact
-        self.planner = None  # a mjnav.tasks.core.Planner replaces the learned action layer when set
+        self.planner = None  # a mjnav.planners.base.Planner replaces the learned action layer when set
         self._scan = None
         self.timers = {"physics": 0.0, "lidar": 0.0}  # seconds, accumulated; NavCore has the rest
         self._t_physics = 0.0

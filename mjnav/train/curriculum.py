@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 import yaml
 from rsl_rl.runners import OnPolicyRunner
 
+from mjnav.config import load_task
 from mjnav.envs.vec_env import NavVecEnv
 from mjnav.train.config import TrainConfig
 from mjnav.train.evaluate import EvalResult, evaluate
@@ -40,9 +41,7 @@ def stage_name(stage: int) -> str:
 
 
 def load_stage(name: str, overrides: list[str]) -> TaskConfig:
-    """:func:`mjnav.config.load_task` (imported lazily: the stage modules are heavy)."""
-    from mjnav.config import load_task
-
+    """:func:`mjnav.config.load_task` of the stage ``name`` with dotted ``overrides``."""
     return load_task(name, overrides)
 
 

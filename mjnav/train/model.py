@@ -13,25 +13,11 @@ from collections.abc import Sequence
 
 import torch
 from rsl_rl.models import MLPModel
-from rsl_rl.utils import resolve_nn_activation
 from tensordict import TensorDict
 
-__all__ = ["LayerwiseMLPModel", "make_activation"]
+from mjnav.policy import make_activation
 
-_EXTRA_ACTIVATIONS = {
-    "hardswish": torch.nn.Hardswish,
-    "relu6": torch.nn.ReLU6,
-    "leaky_relu": torch.nn.LeakyReLU,
-}
-
-
-def make_activation(name: str) -> torch.nn.Module:
-    """Activation module by name: rsl-rl's names plus ``hardswish``, ``relu6``, ``leaky_relu``."""
-    key = name.lower()
-    if key in _EXTRA_ACTIVATIONS:
-        return _EXTRA_ACTIVATIONS[key]()
-    return resolve_nn_activation(key)
-
+__all__ = ["LayerwiseMLPModel"]
 
 class LayerwiseMLPModel(MLPModel):
     """:class:`~rsl_rl.models.MLPModel` with per-layer activations and an optional output gain."""

@@ -38,7 +38,9 @@ import gymnasium as gym
 import torch
 from rsl_rl.runners import OnPolicyRunner
 from rsl_rl.utils.log_writer import LogWriter
+from torch.utils.tensorboard import SummaryWriter
 
+from mjnav.envs.gym_env import make_gym_env
 from mjnav.envs.vec_env import NavVecEnv
 from mjnav.envs.workers import usable_cores
 from mjnav.train.config import TrainConfig
@@ -86,8 +88,6 @@ class TaskEnvFactory:
 
     def __call__(self, index: int) -> gym.Env:
         """Build environment ``index`` (unseeded: the adapter resets it with ``seed + index``)."""
-        from mjnav.envs.gym_env import make_gym_env
-
         return make_gym_env(self.task)
 
 
@@ -361,8 +361,6 @@ class ProgressWriter(LogWriter):
         start_iteration: int = 0,
     ) -> None:
         """Open the TensorBoard writer in ``log_dir``."""
-        from torch.utils.tensorboard import SummaryWriter
-
         self.tb = SummaryWriter(log_dir=log_dir, flush_secs=10)
         self.label, self.total, self.steps_per_env = label, total_iterations, steps_per_env
         self.start = start_iteration

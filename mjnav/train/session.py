@@ -190,7 +190,7 @@ def resolve_start(args: RunArgs, root: Path | None = None) -> str:
 
 def _same_design(checkpoint: Path, args: RunArgs) -> bool:
     """The shipped checkpoint's design (observation and action sizes) is the one requested."""
-    from mjnav.eval.policies import training_overrides
+    from mjnav.policy import training_overrides
 
     shipped = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
     overrides = [*training_overrides(checkpoint), *args.task_overrides]
@@ -225,7 +225,7 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
         task, label = stages.load_stage(stage_name(state.stage), overrides), "curriculum"
     else:
         if start == "shipped":
-            from mjnav.eval.policies import training_overrides
+            from mjnav.policy import training_overrides
 
             previous = _stage_number(args.task) - 1  # type: ignore[operator]
             init = _check_init(shipped_checkpoint(previous, root))  # type: ignore[arg-type]
@@ -250,7 +250,7 @@ def _shipped_recipe(checkpoint: Path, train_overrides: Sequence[str]) -> TrainCo
     """The PPO config the shipped checkpoint was trained with (its ``NAME_config.yaml``: learning
     rate schedule, batch, iterations, ...) but :data:`MACHINE_SETTINGS`, then the command's
     ``train.*`` overrides; None without that file."""
-    from mjnav.eval.policies import policy_config
+    from mjnav.policy import policy_config
 
     path = policy_config(checkpoint)
     if path is None:

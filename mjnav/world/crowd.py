@@ -25,12 +25,9 @@ from collections.abc import Sequence
 import numba
 import numpy as np
 
-from mjnav.schema import CrowdConfig
-
 __all__ = [
     "PedestrianModel",
     "RandomWalkModel",
-    "make_pedestrian_model",
     "pack_polygons",
     "polygon_contact",
 ]
@@ -236,30 +233,6 @@ def _check_steps(steps: int) -> None:
     """Raises unless ``steps`` is an integer >= 1."""
     if not (isinstance(steps, (int, np.integer)) and steps >= 1):
         raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
-
-
-def make_pedestrian_model(config: CrowdConfig) -> PedestrianModel:
-    """Builds the motion model named by ``config.model``.
-
-    Args:
-        config: Crowd config; ``model`` is ``random_walk`` or ``social_force``.
-
-    Returns:
-        A model waiting for :meth:`PedestrianModel.reset`.
-
-    Raises:
-        ValueError: If ``config.model`` names no model.
-    """
-    if config.model == "random_walk":
-        return RandomWalkModel(yaw_rate=config.yaw_rate, yaw_interval=config.yaw_interval)
-    if config.model == "social_force":
-        # Imported here: social_force imports this module for the base class and the kernels.
-        from mjnav.world.social_force import SocialForceModel
-
-        return SocialForceModel.from_config(config)
-    raise ValueError(
-        f"crowd.model: unknown pedestrian model {config.model!r}; use 'random_walk' or 'social_force'"
-    )
 
 
 # ---------------------------------------------------------------------------- input checks

@@ -9,9 +9,9 @@ import pytest
 
 import mjnav  # noqa: F401 - registers the ids
 from mjnav.envs.gym_env import NavGymEnv
-from mjnav.eval.gl import probe_gl_backend
 from mjnav.eval.policies import load_policy
 from mjnav.eval.runner import held_out_seed, run_episode
+from mjnav.viz.gl import probe_gl_backend
 
 HAS_GL = any(probe_gl_backend(b) for b in ("egl", "osmesa"))
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from mjnav.eval.policies import load_policy, policy_name, resolve_checkpoint
+from mjnav.eval.policies import load_policy
+from mjnav.policy import policy_name, resolve_checkpoint
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +57,7 @@ def test_training_overrides_come_from_the_policy_config(tmp_path):
     """A shipped NAME_policy.pt is evaluated with NAME_config.yaml's task overrides; baselines have none."""
     import yaml
 
-    from mjnav.eval.policies import policy_config, training_overrides
+    from mjnav.policy import policy_config, training_overrides
 
     (tmp_path / "stage4_policy.pt").write_bytes(b"x")
     (tmp_path / "stage4_config.yaml").write_text(yaml.safe_dump({"run": {"task_overrides": ["design=design2",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjnav.eval.gl import probe_gl_backend
+from mjnav.viz.gl import probe_gl_backend
 
 BACKEND = next((b for b in ("egl", "osmesa") if probe_gl_backend(b)), None)
 needs_gl = pytest.mark.skipif(

@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pytest
 
-from mjnav.baselines import dwa, mpc_goal, teb
 from mjnav.eval import runner
 from mjnav.eval.policies import load_policy
+from mjnav.planners import dwa, mpc_goal, teb
 from mjnav.eval.runner import (
     HELD_OUT_BASE,
     EvalError,

@@ -120,7 +120,7 @@ def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
                                                                monkeypatch: pytest.MonkeyPatch) -> None:
     """A baseline's records carry a hash of its resolved parameters: the same parameters match, a
     changed default (or an override) does not, so a re-tuned TEB is never reported with old episodes."""
-    from mjnav.baselines import PLANNER_CONFIGS, TebConfig
+    from mjnav.planners import PLANNERS, TebConfig
 
     assert policy_sha256("teb") == policy_sha256("teb") != policy_sha256("teb", ["d_inflation=0.9"])
     assert policy_sha256("dwa") != policy_sha256("teb") and policy_sha256("mpc_goal") is None
@@ -136,8 +136,12 @@ def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
     assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"]["success"] == 3
     retuned = dataclasses.make_dataclass("TebConfig", [("d_inflation", float, 1.8)], bases=(TebConfig,),
                                        frozen=TebConfig.__dataclass_params__.frozen)
-    monkeypatch.setitem(PLANNER_CONFIGS, "teb", retuned)
-    assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"] is None
+    teb = PLANNERS.get("teb")
+    PLANNERS.register("teb", teb.factory, config=retuned, replace=True)
+    try:
+        assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"] is None
+    finally:
+        PLANNERS.register("teb", teb.factory, config=teb.config_class, source=teb.source, replace=True)
 
 
 def _trip(d: float, outcome: str) -> dict:

@@ -188,7 +188,7 @@ def test_public_kernels_work_after_cached_jitted_callers():
         "import numpy as np\n"
         "from mjnav.geometry.region import compute_region\n"
         "from mjnav.control.mpc import Mpc\n"
-        "from mjnav.control.qp import rollout\n"
+        "from mjnav.control.dynamics import rollout\n"
         "from mjnav.geometry.polygon import convex_hull_indices, star_hull_indices\n"
         "a = np.arange(360) * np.pi / 180\n"
         "compute_region(np.full(360, 5.0) + np.sin(a), a)\n"

@@ -21,7 +21,8 @@ from mjnav.entities.crowd import Crowd
 from mjnav.entities.robot import OmniRobot
 from mjnav.geometry.raycast import beam_angles, cast_rays, wall_segments
 from mjnav.schema import ArenaConfig, CrowdConfig, LidarConfig, ObstacleConfig, RobotConfig
-from mjnav.sensors.lidar import AnalyticLidar, MujocoLidar, make_lidar
+from mjnav.sensors import make_lidar
+from mjnav.sensors.lidar import AnalyticLidar, MujocoLidar
 from mjnav.sim import NavSim
 
 ANGLES = beam_angles(360)

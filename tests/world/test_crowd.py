@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from mjnav.schema import CrowdConfig
-from mjnav.world.crowd import PedestrianModel, RandomWalkModel, make_pedestrian_model
+from mjnav.world import make_pedestrian_model
+from mjnav.world.crowd import PedestrianModel, RandomWalkModel
 from mjnav.world.social_force import MAX_SPEED_FACTOR, SocialForceModel
 
 DT = 0.02

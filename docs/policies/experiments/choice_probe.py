@@ -15,7 +15,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 os.environ.setdefault("IMIT_OVERRIDES", "action.heading=goal,observation.frame=goal")
 os.environ["IMIT_TEACHER"] = "vo"
 import imitation as im
-from mjnav.baselines import mpc_crowd as mc
+from mjnav.planners import mpc_crowd as mc
 from mjnav.control.action import goal_inside
 
 CFG = mc.MpcCrowdConfig()

@@ -64,7 +64,7 @@ def play(env, seed: int, net, std: torch.Tensor, gen: torch.Generator):
 
 
 def main(argv: list[str]) -> None:
-    from mjnav.eval.policies import build_actor
+    from mjnav.policy import build_actor
 
     out, ckpt, stage, iterations = Path(argv[0]), Path(argv[1]), argv[2], int(argv[3])
     seed0 = int(argv[4]) if len(argv) > 4 else 30_000_000

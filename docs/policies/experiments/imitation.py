@@ -12,7 +12,7 @@ IMIT_OVERRIDES (comma-separated task overrides, e.g. action.heading=goal,observa
 adds to the task's overrides.
 
 IMIT_TEACHER=vo swaps mpc_gap's Q_l for the privileged one of ``mpc_crowd``
-(:mod:`mjnav.baselines.mpc_crowd`: the pedestrians' true positions, velocities differenced over the
+(:mod:`mjnav.planners.mpc_crowd`: the pedestrians' true positions, velocities differenced over the
 control period), which the student never sees; IMIT_VO overrides its MpcCrowdConfig fields (e.g.
 ``margin=0.5,weight=4``). Through Ours' layer (goal frame, margin 0.1) it succeeds in 97.0 / 90.5 /
 72.0 % of stage 5 / 6 / 7 tuning scenarios (200 each; held-out, 1,000 each: 97.2 / 86.8 / 72.2 %).
@@ -51,7 +51,7 @@ def crowd_q_l(env, p, goal, prefer=None):
     true positions, their velocities differenced over the control period (``prefer``: a unit
     direction: ``CONSISTENT``·cos(candidate, ``prefer``) is added to every moving candidate's score,
     so that among near-equal detours the teacher labels the student's own)."""
-    from mjnav.baselines.mpc_crowd import CrowdTracker, MpcCrowdConfig, best_long_point, crowd_scores
+    from mjnav.planners.mpc_crowd import CrowdTracker, MpcCrowdConfig, best_long_point, crowd_scores
 
     task = env.task
     circles = task.sim.pedestrian_circles()
@@ -86,7 +86,7 @@ def student_direction(env, action) -> np.ndarray | None:
 
 
 def teacher_action(env, prefer=None) -> np.ndarray:
-    from mjnav.baselines.mpc_goal import MpcGapConfig, reference_points
+    from mjnav.planners.mpc_goal import MpcGapConfig, reference_points
     from mjnav.control.action import map_action_values, radii
 
     task = env.task
@@ -122,7 +122,7 @@ def make_env(stage):
 def load_student(ckpt):
     import torch
 
-    from mjnav.eval.policies import build_actor
+    from mjnav.policy import build_actor
 
     state = torch.load(ckpt, map_location="cpu", weights_only=False)["actor_state_dict"]
     net = build_actor(state, ("relu", "relu", "hardswish")).eval()
@@ -174,7 +174,7 @@ def main(argv):
     elif mode == "fit":
         import torch
 
-        from mjnav.eval.policies import build_actor
+        from mjnav.policy import build_actor
 
         out_dir, base = Path(argv[1]), argv[2]
         data = [np.load(f) for f in argv[3:]]

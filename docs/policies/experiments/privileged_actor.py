@@ -55,7 +55,7 @@ def evaluate(checkpoint: Path, episodes: int, seed_offset: int) -> float:
     import yaml
 
     import mjnav  # noqa: F401  (registers the ids)
-    from mjnav.eval.policies import build_actor, policy_config, training_overrides
+    from mjnav.policy import build_actor, policy_config, training_overrides
     from mjnav.eval.runner import held_out_seed
 
     weights = torch.load(str(checkpoint), map_location="cpu", weights_only=False)["actor_state_dict"]

@@ -51,8 +51,8 @@ DELTAS = [np.array(d, np.float32) for d in (
 
 
 def config_path(ckpt: str | Path) -> Path:
-    """The checkpoint's training config (:func:`mjnav.eval.policies.policy_config`); an error if none."""
-    from mjnav.eval.policies import policy_config
+    """The checkpoint's training config (:func:`mjnav.policy.policy_config`); an error if none."""
+    from mjnav.policy import policy_config
 
     config = policy_config(ckpt)
     if config is None:
@@ -62,7 +62,7 @@ def config_path(ckpt: str | Path) -> Path:
 
 def _overrides(ckpt: str) -> list[str]:
     """The task overrides the checkpoint was trained with."""
-    from mjnav.eval.policies import training_overrides
+    from mjnav.policy import training_overrides
 
     return list(training_overrides(ckpt))
 
@@ -152,7 +152,7 @@ def collect(out: str, ckpt: str, stage: str, n: int, seed0: int) -> None:
 def fit(out_dir: str, ckpt: str, files: list[str]) -> None:
     import torch
 
-    from mjnav.eval.policies import build_actor
+    from mjnav.policy import build_actor
 
     data = [np.load(f) for f in files]
     obs = torch.as_tensor(np.concatenate([d["obs"] for d in data]))

@@ -5,7 +5,7 @@
   points in the convex region → MPC with the polygon constraint). This is what an untrained
   policy does: it shows how much the safe action layer alone achieves.
 * :class:`RandomPlanner` (policy name ``random_jerk``): a uniform random jerk in ±j_max per axis
-  every step, as a :class:`mjnav.tasks.core.Planner` (no region, no MPC), with the velocity kept
+  every step, as a :class:`mjnav.planners.base.Planner` (no region, no MPC), with the velocity kept
   inside ±v_max by braking the axes that would leave it.
 
 Both draw from the generator handed to them at reset (the task gives planners their own stream
@@ -19,13 +19,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, brake
+from mjnav.control.dynamics import Limits, brake, integrate
 
 __all__ = ["RandomActionPolicy", "RandomPlanner"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 class RandomActionPolicy:
@@ -47,7 +47,7 @@ class RandomActionPolicy:
 
 
 class RandomPlanner:
-    """Uniform random jerk within the limits, as a :class:`mjnav.tasks.core.Planner`."""
+    """Uniform random jerk within the limits, as a :class:`mjnav.planners.base.Planner`."""
 
     def __init__(self) -> None:
         """No parameters: the limits come with :meth:`reset`."""
@@ -67,8 +67,8 @@ class RandomPlanner:
         a = np.nan_to_num(np.asarray(inp.acceleration, dtype=np.float64))
         jerk = self._rng.uniform(-lim.j_max, lim.j_max, 2)
         t = lim.control_period
-        v_next = v + a * t + jerk * t * t / 2.0 + a * np.abs(a) / (2.0 * lim.j_max)
-        a_next = a + jerk * t
+        _, v_end, a_next = integrate(0.0, v, a, jerk, t)
+        v_next = v_end + a * np.abs(a) / (2.0 * lim.j_max)
         stop = brake(v, a, lim)
         unsafe = (np.abs(v_next) > 0.9 * lim.v_max) | (np.abs(a_next) > lim.a_max)
         return np.where(unsafe, stop, jerk)

@@ -29,7 +29,7 @@ is rejected: the robot brakes and the band is re-initialised (TEB's feasibility 
 
 Tracking: the robot follows the band's velocity profile with position feedback,
 ``v_cmd = v_band(τ + t_c) + k_p·(x_band(τ) − p)``, turned into jerk by the jerk-limited law of
-:func:`mjnav.baselines.tracking.track_velocity` (gain ``k_v``); τ is the time since the band was
+:func:`mjnav.control.dynamics.track_velocity` (gain ``k_v``); τ is the time since the band was
 made. The robot's own acceleration limit (4 m/s²) applies to tracking; the band uses ``a_max``.
 
 Parameters (:class:`TebConfig`, defaults): v_max 2.5 m/s, a_max 2.5 m/s², d_min 0.325 m,
@@ -60,7 +60,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.optimize import least_squares
 
-from mjnav.baselines.tracking import Limits, brake, nearest_per_sector, scan_points, track_velocity
+from mjnav.control.dynamics import Limits, brake, track_velocity
+from mjnav.planners.scan import nearest_per_sector, scan_points
 
 __all__ = [
     "Band",
@@ -78,7 +79,7 @@ __all__ = [
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 @dataclasses.dataclass(frozen=True)
@@ -305,7 +306,7 @@ def local_goal(goal: np.ndarray, points: np.ndarray, cfg: TebConfig) -> np.ndarr
 
 
 class TebPlanner:
-    """TEB baseline as a :class:`mjnav.tasks.core.Planner` (see the module docstring)."""
+    """TEB baseline as a :class:`mjnav.planners.base.Planner` (see the module docstring)."""
 
     def __init__(self, config: TebConfig | None = None) -> None:
         """Store the parameters; the task's limits come with :meth:`reset`."""

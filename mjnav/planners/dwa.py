@@ -17,7 +17,7 @@ Every control step:
    omni form of the heading term), clearance = min(clearance over the rollout, clearance_cap) /
    clearance_cap, speed = ‖v‖/(√2·v_max).
 5. The best admissible velocity becomes the reference of the jerk-limited tracker
-   (:func:`mjnav.baselines.tracking.track_velocity`, gain ``k_v``). With none admissible the robot
+   (:func:`mjnav.control.dynamics.track_velocity`, gain ``k_v``). With none admissible the robot
    brakes (counted in ``stats["no_admissible"]``).
 
 Obstacles are treated as static (the scan of this step). Parameters (:class:`DwaConfig`):
@@ -40,13 +40,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, brake, nearest_per_sector, scan_points, track_velocity
+from mjnav.control.dynamics import Limits, brake, track_velocity
+from mjnav.planners.scan import nearest_per_sector, scan_points
 
 __all__ = ["DwaConfig", "DwaPlanner", "score_velocities", "window"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,7 +112,7 @@ def score_velocities(
 
 
 class DwaPlanner:
-    """DWA baseline as a :class:`mjnav.tasks.core.Planner` (see the module docstring)."""
+    """DWA baseline as a :class:`mjnav.planners.base.Planner` (see the module docstring)."""
 
     def __init__(self, config: DwaConfig | None = None) -> None:
         """Store the parameters; the task's limits come with :meth:`reset`."""

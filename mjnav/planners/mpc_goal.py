@@ -39,16 +39,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.tracking import Limits, brake, escape
 from mjnav.control.action import ActionConfig, boundary_distance, goal_inside, radii
+from mjnav.control.dynamics import Limits, brake, escape
 from mjnav.control.guarded import GuardedMpc
+from mjnav.schema import ConfigError
 
 __all__ = ["MpcGapConfig", "MpcGapPlanner", "MpcGoalPlanner", "reference_points"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
     from mjnav.geometry.region import Region
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,8 +70,6 @@ class MpcGapConfig:
 
     def __post_init__(self) -> None:
         """Reject values that would make the choice meaningless."""
-        from mjnav.schema import ConfigError
-
         if not (math.isfinite(self.clearance_weight) and self.clearance_weight >= 0.0):
             raise ConfigError(f"clearance_weight: must be finite and >= 0, got {self.clearance_weight}")
         if not (math.isfinite(self.clearance_cap) and self.clearance_cap > 0.0):
@@ -131,7 +130,7 @@ def reference_points(
 
 
 class MpcGoalPlanner:
-    """Region + MPC heading for the goal, as a :class:`mjnav.tasks.core.Planner`."""
+    """Region + MPC heading for the goal, as a :class:`mjnav.planners.base.Planner`."""
 
     def __init__(self, safety: float = 0.9, gap: MpcGapConfig | None = None) -> None:
         """``safety``: fraction of the boundary distance for Q_l when the goal is outside; ``gap``:

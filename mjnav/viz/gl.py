@@ -9,7 +9,7 @@ imported yet. System packages (Debian/Ubuntu):
 * OSMesa: ``libosmesa6`` (software only, slower).
 
 Call :func:`select_gl_backend` before importing ``mujoco``/``dm_control`` where possible; the
-renderer (:mod:`mjnav.eval.render`) creates its context explicitly, so it also works when MuJoCo
+renderer (:mod:`mjnav.viz.scene`) creates its context explicitly, so it also works when MuJoCo
 was imported first.
 """
 

@@ -1,8 +1,8 @@
 """``mpc_crowd``: the action layer steered by the pedestrians' true motion (privileged; not in the paper).
 
-The same pipeline as :mod:`mjnav.baselines.mpc_goal` (convex region, MPC, fallbacks), with ``Q_l``
+The same pipeline as :mod:`mjnav.planners.mpc_goal` (convex region, MPC, fallbacks), with ``Q_l``
 chosen from the simulator's ground truth: the pedestrians' positions and radii
-(:attr:`mjnav.tasks.core.PlannerInput.pedestrians`), their velocities estimated by differencing
+(:attr:`mjnav.planners.base.PlannerInput.pedestrians`), their velocities estimated by differencing
 the positions over one control period. A robot never has this; the planner is an *oracle*: it
 shows what the action layer reaches when the crowd's motion is known, an upper reference for a
 learned policy that must infer it from the scan.
@@ -34,8 +34,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.baselines.mpc_goal import MpcGoalPlanner
 from mjnav.control.action import boundary_distance, goal_inside
+from mjnav.planners.mpc_goal import MpcGoalPlanner
+from mjnav.schema import ConfigError
 from mjnav.tasks.privileged import CrowdTracker
 
 __all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "best_long_point", "crowd_long_point", "crowd_scores"]
@@ -43,7 +44,7 @@ __all__ = ["CrowdTracker", "MpcCrowdConfig", "MpcCrowdPlanner", "best_long_point
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
     from mjnav.geometry.region import Region
-    from mjnav.tasks.core import PlannerInput
+    from mjnav.planners.base import PlannerInput
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,8 +75,6 @@ class MpcCrowdConfig:
 
     def __post_init__(self) -> None:
         """Reject values that would make the choice meaningless."""
-        from mjnav.schema import ConfigError
-
         positive = {"margin": self.margin, "horizon": self.horizon, "lag": self.lag}
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0.0):

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mjnav.baselines import PLANNERS, make_planner
-from mjnav.baselines.tracking import Limits, brake, track_velocity
 from mjnav.config import load_task
+from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import compute_region
-from mjnav.tasks.core import PlannerInput
+from mjnav.planners import PLANNERS, make_planner
+from mjnav.planners.base import PlannerInput
 
 GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "mpc_crowd", "teb", "dwa")
 
@@ -96,7 +96,7 @@ def test_brake_stops():
 
 def test_escape_backs_away_from_the_nearest_returns():
     """Escape drives the robot away from the nearest beams at the escape speed, and brakes between equal walls."""
-    from mjnav.baselines.tracking import escape
+    from mjnav.control.dynamics import escape
 
     lim, angles = Limits(), beam_angles(360)
     scan = np.full(360, 5.0)
@@ -114,8 +114,8 @@ def test_mpc_gap_heads_for_open_space_near_the_goal_direction():
     """With the goal direction blocked close ahead and open space 90° to the left, mpc_gap's Q_l goes
     left while mpc_goal's stays on the goal line; without the clearance term both agree; Q_s lies on
     Q_l's ray within the short-term circle; bad parameters are refused."""
-    from mjnav.baselines import MpcGapConfig
-    from mjnav.baselines.mpc_goal import reference_points
+    from mjnav.planners import MpcGapConfig
+    from mjnav.planners.mpc_goal import reference_points
     from mjnav.schema import ConfigError
 
     angles = beam_angles(360)
@@ -140,8 +140,8 @@ def test_mpc_crowd_steps_aside_from_a_pedestrian_walking_at_it():
     """With no crowd mpc_crowd's Q_l goes straight at the goal at full speed; a pedestrian 2 m ahead
     walking towards the robot turns Q_l off the goal line, while one beside the line walking away
     from it leaves Q_l there. Bad parameters are refused."""
-    from mjnav.baselines import MpcCrowdConfig
-    from mjnav.baselines.mpc_crowd import crowd_long_point
+    from mjnav.planners import MpcCrowdConfig
+    from mjnav.planners.mpc_crowd import crowd_long_point
     from mjnav.schema import ConfigError
 
     angles = beam_angles(360)
@@ -160,7 +160,7 @@ def test_mpc_crowd_steps_aside_from_a_pedestrian_walking_at_it():
                 {"safety": 0.0}):
         with pytest.raises(ConfigError):
             MpcCrowdConfig(**bad)
-    from mjnav.baselines import planner_config
+    from mjnav.planners import planner_config
 
     assert planner_config("mpc_crowd", ["speeds=[1.0, 2.0]", "margin=0.5"]).speeds == (1.0, 2.0)
     for bad in ("speeds=3", "speeds=[1.0, -2.0]", "speeds=[]"):
