@@ -19,7 +19,7 @@ import mjnav  # noqa: F401 - registers the ids
 from mjnav.envs.bounded import ALPHA_TOLERANCE, RAW_LIMIT, BoundedNavGymEnv, observation_bounds, raw_action
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.envs.registration import ENV_IDS, V2_ENV_IDS, v2_id
-from mjnav.eval.gl import probe_gl_backend
+from mjnav.viz.gl import probe_gl_backend
 
 HAS_GL = any(probe_gl_backend(b) for b in ("egl", "osmesa"))
 SHORT = ["timing.episode_steps=25"]  # episodes the wrapper tests run
