@@ -275,7 +275,12 @@ def describe_fields(cls: type, prefix: str = "", full: bool = False) -> list[str
         prefix: Printed before each name (``task.crowd.``).
         full: The whole description instead of its first sentence.
     """
-    docs = attribute_docs(cls)
+    docs, hints = attribute_docs(cls), typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        section = hints[f.name]
+        if f.name not in docs and dataclasses.is_dataclass(section):  # a nested section: its class's summary
+            summary = (inspect.getdoc(section) or "").splitlines()[0] if inspect.getdoc(section) else ""
+            docs[f.name] = f"{summary} (its keys: --help {prefix}{f.name})"
     rows = [(f"{prefix}{f.name}={_default(f)}", docs.get(f.name, "")) for f in dataclasses.fields(cls)]
     width = min(max((len(k) for k, _ in rows), default=0), 40)
     lines = []

@@ -24,7 +24,8 @@ from typing import Any
 from mjnav.args import HELP_FLAGS, PREFIXES, Grammar, Parsed, closest, describe_fields, parse
 from mjnav.schema import ConfigError
 
-__all__ = ["VERBS", "Verb", "evaluate", "export", "help_text", "main", "render", "run_script", "run_verb", "section_help", "train"]
+__all__ = ["VERBS", "Verb", "evaluate", "export", "help_text", "main", "render", "run_script", "run_verb",
+           "section_help", "train"]
 
 #: ``run(parsed, argv) -> exit code`` of a verb.
 Runner = Callable[[Parsed, list[str]], int]

@@ -30,6 +30,7 @@ import numpy as np
 
 from mjnav.args import Parsed
 from mjnav.cli import run_script
+from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
 
 ROOT = Path(__file__).resolve().parents[1]

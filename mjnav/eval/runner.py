@@ -41,6 +41,8 @@ from mjnav.args import Grammar, parse
 from mjnav.schema import ConfigError
 
 __all__ = [
+    "EvaluateOptions",
+    "grammar",
     "HELD_OUT_BASE",
     "EpisodeTrace",
     "EvalError",

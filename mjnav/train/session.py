@@ -1,23 +1,7 @@
-"""A training session as ``scripts/train.py`` runs it: arguments, run folder, resume, export.
+"""A training session as ``mjnav train`` runs it: arguments, run folder, resume, export.
 
-Arguments are ``key=value`` (values parsed as YAML)::
-
-    task=stage6            bundled stage name or YAML path (not needed with curriculum/resume)
-    task.<key>=<value>     TaskConfig override (task.crowd.count=25)
-    train.<key>=<value>    TrainConfig override (train.num_envs=16, train.policy.init_log_std=-1)
-    seed=3                 same as train.seed=3
-    resume=RUN_DIR         continue RUN_DIR from its latest checkpoint up to train.iterations
-    init=CHECKPOINT        start a new run from a checkpoint's actor and critic weights
-    curriculum=true        walk stage1 -> stage7 (train.curriculum.*); without train.iterations= the
-                           cap is every stage's whole budget (:func:`curriculum_iterations`)
-    start=auto             where a new run on stage K starts (:func:`resolve_start`): ``shipped``
-                           (init from ``docs/policies/stage<K-1>_checkpoint.pt`` with the task
-                           overrides and the PPO config, budget included, it was trained with),
-                           ``curriculum`` (walk
-                           stage 1 -> K), ``scratch`` (random weights, stage K only); ``auto``
-                           (default) is ``shipped`` where that file exists, else ``curriculum``
-                           for K >= 2, else ``scratch``; init=/resume=/curriculum=true win
-    out=runs               parent folder of the run folders
+The arguments are :class:`TrainOptions` plus ``task.*``/``train.*`` overrides and ``seed=`` (the same
+as ``train.seed=``), in the grammar of :mod:`mjnav.args`; ``mjnav train --help`` lists them.
 
 Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
 configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
@@ -55,8 +39,8 @@ from mjnav.train.runner import (
 )
 
 __all__ = [
-    "RunArgs", "RunPlan", "TrainOptions", "check_device", "grammar", "curriculum_iterations", "parse_args", "plan_run", "resolve_start", "resume_command", "run",
-    "shipped_checkpoint",
+    "RunArgs", "RunPlan", "TrainOptions", "check_device", "curriculum_iterations", "grammar", "parse_args", "plan_run",
+    "resolve_start", "resume_command", "run", "shipped_checkpoint",
 ]
 
 START_MODES = ("auto", "shipped", "curriculum", "scratch")
@@ -117,7 +101,7 @@ class TrainOptions:
 
 
 def grammar() -> Grammar:
-    """What ``train`` accepts: :class:`TrainOptions`, ``task.*``/``train.*`` overrides, ``seed=`` (= ``train.seed=``)."""
+    """What ``train`` accepts: :class:`TrainOptions`, ``task.*`` and ``train.*`` overrides, ``seed=`` (``train.seed=``)."""
     from mjnav.config import TASK_SECTIONS
 
     return Grammar(TrainOptions, ("task", "train"), {"seed": "train.seed"}, TASK_SECTIONS)

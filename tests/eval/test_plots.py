@@ -58,7 +58,7 @@ def test_learning_curve_from_events(tmp_path):
 
 
 def test_success_by_distance_figure_and_command(tmp_path):
-    """scripts/plot.py distance writes the figure and prints the table; a missing file is an error."""
+    """``mjnav plot distance`` writes the figure and prints the table; a missing file is an error."""
     import json
 
     from mjnav.verbs import plot
