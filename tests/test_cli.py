@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+import runpy
 import shlex
 import signal
 import subprocess
@@ -42,7 +43,7 @@ def test_mjnav_help_lists_the_verbs(capsys: pytest.CaptureFixture[str]) -> None:
     assert "did you mean 'train'" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("words,verb", _leaves(), ids=lambda v: "-".join(v) if isinstance(v, list) else "")
+@pytest.mark.parametrize("words,verb", [pytest.param(w, v, id="-".join(w)) for w, v in _leaves()])
 def test_every_verb_help_names_every_key(words: list[str], verb: cli.Verb, capsys) -> None:
     """``mjnav <verb> --help`` and ``-h`` exit 0 and name every key the verb accepts, with its doc line."""
     grammar = cli._load(verb.grammar)()
@@ -57,22 +58,26 @@ def test_every_verb_help_names_every_key(words: list[str], verb: cli.Verb, capsy
         assert all(f"{prefix}." in text for prefix in grammar.prefixes)
 
 
-def _help_outputs(commands: list[list[str]]) -> list[subprocess.CompletedProcess]:
-    """Run the commands in parallel (each imports mjnav afresh)."""
-    procs = [subprocess.Popen(c, cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for c in commands]
-    return [subprocess.CompletedProcess(p.args, p.wait(timeout=300), *p.communicate()) for p in procs]
+@pytest.mark.parametrize("script", sorted((ROOT / "scripts").glob("*.py")), ids=lambda p: p.name)
+def test_every_script_answers_help(script: Path, monkeypatch: pytest.MonkeyPatch, capsys) -> None:
+    """``python scripts/<name>.py --help`` exits 0 with a usage line (run in-process as ``__main__``)."""
+    monkeypatch.setattr(sys, "argv", [str(script), "--help"])
+    with pytest.raises(SystemExit) as done:
+        runpy.run_path(str(script), run_name="__main__")
+    assert done.value.code == 0
+    assert capsys.readouterr().out.startswith("usage: ")
 
 
-def test_every_script_and_python_m_answer_help() -> None:
-    """Every ``scripts/*.py --help`` and ``python -m mjnav --help`` exit 0 with a usage line."""
-    scripts = sorted((ROOT / "scripts").glob("*.py"))
-    assert len(scripts) >= 15
-    commands = [[sys.executable, str(s), "--help"] for s in scripts]
-    commands += [[sys.executable, "-m", "mjnav", "--help"], [sys.executable, "-m", "mjnav", "export", "-h"]]
-    for done in _help_outputs(commands):
-        assert done.returncode == 0, (done.args, done.stderr[-2000:])
-        assert done.stdout.startswith("usage: "), done.args
+def test_scripts_and_python_m_answer_help_from_a_shell() -> None:
+    """``python -m mjnav --help``, ``python -m mjnav export -h`` and ``python scripts/bench_sim.py --help``
+    exit 0 with a usage line in a fresh interpreter."""
+    commands = [["-m", "mjnav", "--help"], ["-m", "mjnav", "export", "-h"], ["scripts/bench_sim.py", "--help"]]
+    procs = [subprocess.Popen([sys.executable, *c], cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for c in commands]
+    for proc in procs:
+        out, err = proc.communicate(timeout=300)
+        assert proc.returncode == 0 and out.startswith("usage: "), (proc.args, err[-2000:])
+    assert len(list((ROOT / "scripts").glob("*.py"))) >= 15
 
 
 def test_script_keys_are_checked() -> None:
@@ -150,7 +155,7 @@ def test_help_lists_a_config_section(capsys: pytest.CaptureFixture[str]) -> None
 
 def test_ctrl_c_hint_resumes_as_printed(tmp_path: Path) -> None:
     """After Ctrl-C the printed ``<python> -m mjnav train resume=RUN`` runs as printed and finishes the run."""
-    argv = [sys.executable, "-m", "mjnav", "train", "task=stage1", "start=scratch", "train.iterations=12",
+    argv = [sys.executable, "-m", "mjnav", "train", "task=stage1", "start=scratch", "train.iterations=6",
             "train.num_envs=2", "train.steps_per_env=8", "train.minibatches=1", "train.epochs=1", "train.workers=0",
             "train.save_interval=50", f"out={tmp_path}"]
     log = tmp_path / "log.txt"
