@@ -172,6 +172,8 @@ def parse(argv: Iterable[str], grammar: Grammar) -> Parsed:
             config[found[0]].append(f"{found[1]}={raw}")
         elif "." in key and key.partition(".")[0] not in names:
             raise _unknown_dotted(key, grammar)
+        elif key in grammar.task_sections and "task" in grammar.prefixes:
+            raise ArgsError(f"unknown key {key!r}: a task config field is set as task.{key}={raw}")
         else:
             raise unknown_key(key, [*names, *grammar.aliases], _forms(grammar))
     try:

@@ -121,6 +121,8 @@ def test_unknown_keys_are_named_with_the_known_ones_and_the_closest(capsys: pyte
     assert "'crwd'" in err and "did you mean 'crowd.count'" in err and "steps" not in err
     assert cli.main(["export", "task=stage1", "task.crowd.cont=7"]) == 2  # found when the task loads
     assert "did you mean 'count'" in capsys.readouterr().err
+    assert cli.main(["export", "collision=scan"]) == 2
+    assert "task.collision=scan" in capsys.readouterr().err
     assert cli.main(["tables", "crowd.count=3"]) == 2
     assert "takes no config overrides" in capsys.readouterr().err
     assert cli.main(["render", "width=wide"]) == 2
