@@ -15,6 +15,7 @@ from typing import Any, Literal
 
 import yaml
 
+from mjnav.args import task_overrides
 from mjnav.control.action import ActionConfig
 from mjnav.control.mpc import MpcConfig
 from mjnav.geometry.region import RegionConfig
@@ -35,7 +36,7 @@ from mjnav.schema import (
 from mjnav.tasks.design import DESIGNS
 from mjnav.world import PEDESTRIAN_MODELS
 
-__all__ = ["ConfigError", "TaskConfig", "load_task", "task_dir"]
+__all__ = ["ConfigError", "TaskConfig", "TASK_SECTIONS", "load_task", "override_task", "task_dir"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,6 +120,20 @@ class TaskConfig:
                                      f"it is derived: set {key}")
 
 
+#: Field names of :class:`TaskConfig`: the first part of a short config key (``crowd.count=25``).
+TASK_SECTIONS = tuple(f.name for f in dataclasses.fields(TaskConfig))
+
+
+def override_task(config: TaskConfig, overrides: dict[str, Any] | list[str] | None) -> TaskConfig:
+    """``config`` with dotted overrides applied; ``task.crowd.count`` and ``crowd.count`` mean the same
+    (the command line's key forms, :func:`mjnav.args.task_overrides`).
+
+    Raises:
+        ConfigError: An unknown key (with the closest known one) or a bad value.
+    """
+    return apply_overrides(config, task_overrides(overrides or {}, TASK_SECTIONS))
+
+
 def task_dir() -> Path:
     """Folder of the bundled stage YAML files."""
     here = Path(__file__).resolve().parent
@@ -180,7 +195,7 @@ def load_task(name_or_path: str | Path, overrides: dict[str, Any] | list[str] | 
             raise ConfigError(f"{path.name}: 'extends' allows one level ({parent_path.name} extends again)")
         config = _merge_file(config, parent_data, parent_path)
     config = _merge_file(config, {"name": path.stem, **data}, path)
-    return apply_overrides(config, overrides or {})
+    return override_task(config, overrides)
 
 
 def _merge_file(config: TaskConfig, data: dict[str, Any], path: Path) -> TaskConfig:

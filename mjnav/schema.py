@@ -8,6 +8,7 @@ unknown keys and wrong types with the key's dotted path. Units are SI.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import re
 import types
@@ -29,7 +30,7 @@ __all__ = [
     "TimingConfig",
     "apply_overrides",
     "check",
-    "split_args",
+    "coerce",
     "from_dict",
     "merge",
     "parse_override",
@@ -398,6 +399,15 @@ def _is_dataclass_type(tp: Any) -> bool:
     return isinstance(tp, type) and dataclasses.is_dataclass(tp)
 
 
+def coerce(value: Any, tp: Any, path: str) -> Any:
+    """Convert a parsed (YAML) value to the annotated type ``tp``.
+
+    Raises:
+        ConfigError: Naming ``path``, on a value of the wrong type (``seed: expected an integer, got 'x'``).
+    """
+    return _coerce(value, tp, path)
+
+
 def _coerce(value: Any, tp: Any, path: str) -> Any:
     """Convert a YAML value to the annotated type or raise ConfigError naming ``path``."""
     origin = typing.get_origin(tp)
@@ -477,7 +487,9 @@ def merge(base: Any, data: dict[str, Any], path: str = "") -> Any:
     for key, value in data.items():
         where = f"{path}{key}"
         if key not in names:
-            raise ConfigError(f"{where}: unknown key (known: {', '.join(sorted(names))})")
+            near = difflib.get_close_matches(key, names, n=1)
+            hint = f"; did you mean {near[0]!r}?" if near else ""
+            raise ConfigError(f"{where}: unknown key (known: {', '.join(sorted(names))}){hint}")
         field_type = hints[key]
         if _is_dataclass_type(field_type) and isinstance(value, dict):
             changes[key] = merge(getattr(base, key), value, where + ".")
@@ -531,30 +543,3 @@ def apply_overrides(config: Any, overrides: dict[str, Any] | list[str]) -> Any:
         except ConfigError as err:
             raise ConfigError(f"override {key}={value!r}: {err}") from None
     return config
-
-
-
-
-def split_args(argv: list[str], defaults: dict[str, Any]) -> tuple[dict[str, Any], list[str]]:
-    """Split a script's ``key=value`` arguments into its options and ``task.*`` config overrides.
-
-    Args:
-        argv: Command-line arguments.
-        defaults: The script's own keys and their default values.
-
-    Returns:
-        (options with defaults filled in, ``["crowd.count=25", ...]`` overrides for :func:`load_task`).
-
-    Raises:
-        ConfigError: On an argument without ``=`` or an unknown key (the message lists the known ones).
-    """
-    opts, overrides = dict(defaults), []
-    for arg in argv:
-        key, value = parse_override(arg)
-        if key.startswith("task."):
-            overrides.append(f"{key[5:]}={arg.split('=', 1)[1]}")
-        elif key in opts:
-            opts[key] = value
-        else:
-            raise ConfigError(f"unknown argument {key!r} (known: {', '.join(defaults)}, task.<key>=...)")
-    return opts, overrides

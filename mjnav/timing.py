@@ -1,4 +1,4 @@
-"""Interleaved timing of code blocks, for the speed scripts (``scripts/benchmark.py``, ``compare_speed.py``).
+"""Interleaved timing of code blocks, for the speed benchmarks (``mjnav bench``, ``scripts/compare_speed.py``).
 
 This machine's speed drifts by up to 2x within minutes, so blocks that are to be compared run
 in alternation: every round runs each block once, and the order reverses from one round to the

@@ -8,16 +8,33 @@ row per case: entry point, input, the exception type and its message.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from mjnav.args import Parsed
+from mjnav.cli import run_script
 
-from tests.test_bad_input import CASES  # noqa: E402 - after the path insert
+
+@dataclasses.dataclass(frozen=True)
+class BadInputOptions:
+    """``scripts/bad_input.py`` takes no keys.
+
+    Attributes:
+    """
 
 
-def main() -> int:
+def main(argv: list[str]) -> int:
+    """Print the table (``--help``: usage); 1 if a case raised nothing."""
+    return run_script(argv, "scripts/bad_input.py", "Feed malformed input to every public entry point; print a table.",
+                      BadInputOptions, _table)
+
+
+def _table(parsed: Parsed) -> int:
     """Print the table; 1 if a case raised nothing."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from tests.test_bad_input import CASES
+
     print("| entry point | input | answer |\n|---|---|---|")
     silent = 0
     for entry, given, call, _, _ in CASES:
@@ -32,4 +49,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(sys.argv[1:]))

@@ -15,6 +15,7 @@ times ``mjnav.make_env``'s ``composer.Environment.step`` instead.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import os
 import re
@@ -27,20 +28,38 @@ from pathlib import Path
 
 import numpy as np
 
-from mjnav.schema import ConfigError, split_args
+from mjnav.args import Parsed
+from mjnav.cli import run_script
+from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT_KEYS = {
-    "ref": "HEAD",
-    "task": "stage7",
-    "blocks": 40,
-    "block_steps": 300,
-    "adapter": False,
-    "dm_env": False,
-    "num_envs": 16,
-    "seed": 0,
-}
+
+
+@dataclasses.dataclass(frozen=True)
+class CompareOptions:
+    """The keys of ``scripts/compare_speed.py``.
+
+    Attributes:
+        ref: The git revision to compare this checkout against.
+        task: Bundled stage name or task YAML path.
+        blocks: Timed blocks per version (alternating, the order swapped every block).
+        block_steps: Random-action steps per block.
+        adapter: Time one ``NavVecEnv`` on all cores instead of one environment.
+        dm_env: Time ``mjnav.make_env``'s ``composer.Environment.step`` instead of the Gymnasium environment.
+        num_envs: Environments of the adapter.
+        seed: Environment seed.
+    """
+
+    ref: str = "HEAD"
+    task: str = "stage7"
+    blocks: int = 40
+    block_steps: int = 300
+    adapter: bool = False
+    dm_env: bool = False
+    num_envs: int = 16
+    seed: int = 0
+
 _IMPORT = re.compile(r"\bmjnav(?=[./\s]|$)", re.MULTILINE)  # imports, entry points, gym ids
 
 
@@ -129,44 +148,49 @@ def compare(blocks: dict[str, Block], repeats: int) -> dict[str, np.ndarray]:
     return time_rounds(blocks, repeats)
 
 
-def main(argv: list[str]) -> None:
+def main(argv: list[str]) -> int:
+    """Parse ``key=value`` arguments (``--help``: the keys) and compare; returns the exit code."""
+    return run_script(argv, "scripts/compare_speed.py", "Paired speed comparison against another git revision.",
+                      CompareOptions, _main, ("task",))
+
+
+def _main(parsed: Parsed) -> int:
     """Export the revision, build both versions, time them in alternation and print the ratio."""
-    opts, overrides = split_args(argv, SCRIPT_KEYS)
+    opts: CompareOptions = parsed.options
+    overrides = list(parsed.task)
     with tempfile.TemporaryDirectory(prefix="mjnav-ref-") as tmp:
-        ref = export_revision(str(opts["ref"]), Path(tmp))
+        ref = export_revision(opts.ref, Path(tmp))
         sys.path.insert(0, tmp)
         os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [tmp, os.environ.get("PYTHONPATH")]))
-        config_args = (str(opts["task"]), overrides)
-        seed, steps, builds, closers = int(opts["seed"]), int(opts["block_steps"]), {}, []
+        config_args = (opts.task, overrides)
+        seed, steps, builds, closers = opts.seed, opts.block_steps, {}, []
         for name, package in (("ref", "mjnav_ref"), ("new", "mjnav")):
-            if opts["adapter"]:
-                block, close = _adapter(package, config_args, seed, steps, int(opts["num_envs"]))
-            elif opts["dm_env"]:
+            if opts.adapter:
+                block, close = _adapter(package, config_args, seed, steps, opts.num_envs)
+            elif opts.dm_env:
                 block, close = _one_dm_env(package, config_args, seed, steps)
             else:
                 block, close = _one_env(package, config_args, seed, steps)
             builds[name] = block
             closers.append(close)
         try:
-            rates = compare(builds, int(opts["blocks"]))
+            rates = compare(builds, opts.blocks)
         finally:
             for close in closers:
                 close()
     ratio = rates["new"] / rates["ref"]
-    what = (f"adapter, {opts['num_envs']} envs, all cores" if opts["adapter"]
-            else "one composer environment (dm_env)" if opts["dm_env"] else "one Gymnasium environment")
+    what = (f"adapter, {opts.num_envs} envs, all cores" if opts.adapter
+            else "one composer environment (dm_env)" if opts.dm_env else "one Gymnasium environment")
     print(
-        f"{opts['task']}, {what}: {ref} median {np.median(rates['ref']):,.0f} steps/s, "
+        f"{opts.task}, {what}: {ref} median {np.median(rates['ref']):,.0f} steps/s, "
         f"this checkout {np.median(rates['new']):,.0f} steps/s"
     )
     print(
         f"paired ratio new/ref: median {np.median(ratio):.3f} "
         f"(IQR {np.percentile(ratio, 25):.3f}-{np.percentile(ratio, 75):.3f}, {len(ratio)} blocks)"
     )
+    return 0
 
 
 if __name__ == "__main__":
-    try:
-        main(sys.argv[1:])
-    except ConfigError as err:
-        sys.exit(f"error: {err}")
+    sys.exit(main(sys.argv[1:]))

@@ -1,64 +1,8 @@
-"""Build a stage, drive one episode with the non-learned convex-MPC planner, report it, export the world.
-
-    python scripts/demo.py task=stage6 [seed=7] [out=out/demo] [task.crowd.count=25]
-
-No training needed: the robot uses ``mpc_goal`` (the free-space polygon + MPC heading for the goal).
-The world of that seed is exported as a standalone MJCF scene (see docs/export.md).
-"""
-
-from __future__ import annotations
+"""``mjnav demo``: one convex-MPC episode, reported and exported (``--help`` lists the keys)."""
 
 import sys
-import time
 
-import numpy as np
-
-from mjnav.planners.mpc_goal import MpcGoalPlanner
-from mjnav.envs.gym_env import NavGymEnv
-from mjnav.export import export_world
-from mjnav.schema import ConfigError, split_args
-
-DEFAULTS = {"task": "stage6", "seed": 7, "out": "out/demo"}
-
-
-def main(argv: list[str]) -> None:
-    """Run the demo episode and export its world."""
-    opts, overrides = split_args(argv, DEFAULTS)
-    if not isinstance(opts["seed"], int) or isinstance(opts["seed"], bool):
-        raise ConfigError(f"seed: expected an integer episode seed, got {opts['seed']!r}")
-    t0 = time.perf_counter()
-    env = NavGymEnv(opts["task"], overrides=overrides, seed=0)
-    build = time.perf_counter() - t0
-    env.task.planner = MpcGoalPlanner()
-    env.reset(options={"episode_seed": int(opts["seed"])})
-    layout, cfg = env.task.layout, env.config
-    print(f"{cfg.name}: {cfg.arena.size[0]:g} x {cfg.arena.size[1]:g} m, {cfg.obstacles.count} obstacles, "
-          f"{cfg.crowd.count} pedestrians ({cfg.crowd.model}); built in {1e3 * build:.0f} ms")
-    print(f"start {np.round(layout.start, 2)}  goal {np.round(layout.goal, 2)}  "
-          f"distance {np.linalg.norm(layout.goal - layout.start):.2f} m")
-    path, ret, t0 = 0.0, 0.0, time.perf_counter()
-    prev = env.task.sim.robot_state(env.physics)[0]
-    for step in range(1, cfg.timing.episode_steps + 1):
-        _, reward, terminated, truncated, info = env.step(np.zeros(4, np.float32))
-        p, v, _ = env.task.sim.robot_state(env.physics)
-        path, ret, prev = path + float(np.linalg.norm(p - prev)), ret + reward, p
-        if step % 10 == 0 or terminated or truncated:
-            t = step * cfg.timing.control_period
-            print(f"  t={t:4.1f} s  pos {np.round(p, 2)}  speed {np.linalg.norm(v):.2f} m/s"
-                  f"  to goal {np.linalg.norm(layout.goal - p):5.2f} m")
-        if terminated or truncated:
-            break
-    wall = time.perf_counter() - t0
-    print(f"outcome: {info['outcome']} after {step} steps ({step * cfg.timing.control_period:.1f} s simulated, "
-          f"{wall:.2f} s wall, {step / wall:.0f} steps/s), path {path:.2f} m, return {ret:.1f}")
-    print(f"MPC fallbacks {env.task.core.counters['fallbacks']}, region failures "
-          f"{env.task.core.counters['region_failures']}")
-    out = export_world(cfg, int(opts["seed"]), opts["out"])
-    print(f"exported the world to {out}")
-
+from mjnav.cli import main
 
 if __name__ == "__main__":
-    try:
-        main(sys.argv[1:])
-    except ConfigError as err:
-        sys.exit(f"error: {err}")
+    sys.exit(main(["demo", *sys.argv[1:]]))

@@ -19,6 +19,7 @@ violation margins, exits 1 on any violation or exception.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -33,7 +34,8 @@ from mjnav.control.mpc import Mpc, MpcConfig, simulate_triple_integrator
 from mjnav.geometry.polygon import halfplanes, is_convex, signed_area
 from mjnav.geometry.raycast import beam_angles, cast_rays
 from mjnav.geometry.region import Region, RegionConfig, compute_region
-from mjnav.schema import ConfigError, split_args
+from mjnav.args import Parsed
+from mjnav.cli import run_script
 
 TOL_REGION = RegionConfig().push + 1e-9  # m: GALAXY pushes each half-plane out by ``push`` (1 µm) on purpose
 TOL_MPC = 1e-6  # SI
@@ -180,19 +182,36 @@ def figure(report: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
+@dataclasses.dataclass(frozen=True)
+class FuzzOptions:
+    """The keys of ``scripts/fuzz.py``.
+
+    Attributes:
+        scans: Random scans given to the convex region.
+        problems: Random problems given to the MPC.
+        seed: Seed of the random inputs.
+        solver: MPC QP solver (``daqp``, ``osqp`` or ``quadprog``).
+        figure: Histogram of the worst violation margins (empty: none).
+    """
+
+    scans: int = 100_000
+    problems: int = 100_000
+    seed: int = 0
+    solver: str = "daqp"
+    figure: str = "docs/media/fuzz.png"
+
+
 def main(argv: list[str]) -> int:
-    """Parse ``key=value`` arguments, fuzz, print the report; 1 on any violation or exception."""
-    defaults = {"scans": 100_000, "problems": 100_000, "seed": 0, "solver": "daqp", "figure": "docs/media/fuzz.png"}
-    try:
-        opts, extra = split_args(argv, defaults)
-        if extra:
-            raise ConfigError(f"unexpected task overrides {extra}")
-    except ConfigError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    report = run(int(opts["scans"]), int(opts["problems"]), int(opts["seed"]), str(opts["solver"]))
-    if opts["figure"]:
-        figure(report, Path(str(opts["figure"])))
+    """Parse ``key=value`` arguments (``--help``: the keys), fuzz, print the report; 1 on any violation."""
+    return run_script(argv, "scripts/fuzz.py", "Fuzz the convex region and the MPC; count invariant violations.",
+                      FuzzOptions, _main)
+
+
+def _main(parsed: Parsed) -> int:
+    opts: FuzzOptions = parsed.options
+    report = run(opts.scans, opts.problems, opts.seed, opts.solver)
+    if opts.figure:
+        figure(report, Path(opts.figure))
     report.pop("_margins")
     print(json.dumps(report, indent=1))
     bad = sum(report[k]["exception_count"] + sum(report[k]["violations"].values()) for k in ("region", "mpc"))

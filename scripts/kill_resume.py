@@ -13,6 +13,7 @@ JSON report; exit code 1 when a check fails.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import random
@@ -26,7 +27,8 @@ from typing import Any
 
 import torch
 
-from mjnav.schema import ConfigError, split_args
+from mjnav.args import Parsed
+from mjnav.cli import run_script
 from mjnav.train.runner import checkpoints
 
 _LINE = re.compile(r"\] it (\d+)/\d+ ")
@@ -106,19 +108,36 @@ def run(kills: int, out: Path, rng: random.Random, iterations: int = 40, save_in
     return report
 
 
+@dataclasses.dataclass(frozen=True)
+class KillResumeOptions:
+    """The keys of ``scripts/kill_resume.py``.
+
+    Attributes:
+        kills: SIGKILLs, each followed by a resume.
+        iterations: PPO iterations of the stage-1 run.
+        save_interval: Iterations between checkpoints.
+        seed: Seed of the kill moments.
+        out: Parent folder of the run.
+    """
+
+    kills: int = 5
+    iterations: int = 40
+    save_interval: int = 5
+    seed: int = 0
+    out: str = "/tmp/kill_resume"
+
+
 def main(argv: list[str]) -> int:
-    """Parse arguments, run, print the report; 1 if a resume failed or lost more than one interval."""
-    defaults = {"kills": 5, "iterations": 40, "save_interval": 5, "seed": 0, "out": "/tmp/kill_resume"}
-    try:
-        opts, extra = split_args(argv, defaults)
-        if extra:
-            raise ConfigError(f"unexpected task overrides {extra}")
-    except ConfigError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    interval = int(opts["save_interval"])
-    report = run(int(opts["kills"]), Path(str(opts["out"])), random.Random(int(opts["seed"])),
-                 int(opts["iterations"]), interval)
+    """Parse arguments (``--help``: the keys), run, print the report; 1 if a resume failed or lost
+    more than one interval."""
+    return run_script(argv, "scripts/kill_resume.py", "Kill a stage-1 training run at random moments and resume it.",
+                      KillResumeOptions, _main)
+
+
+def _main(parsed: Parsed) -> int:
+    opts: KillResumeOptions = parsed.options
+    interval = opts.save_interval
+    report = run(opts.kills, Path(opts.out), random.Random(opts.seed), opts.iterations, interval)
     print(json.dumps(report, indent=1))
     ok = report["finished"] and all(k["lost_iterations"] <= interval and k["checkpoints_load"] for k in report["kills"])
     return 0 if ok else 1

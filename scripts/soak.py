@@ -13,6 +13,7 @@ saves RSS against steps, exits 1 when memory grew by more than 5 % or any except
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -25,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from mjnav.schema import ConfigError, split_args
+from mjnav.args import Parsed
+from mjnav.cli import run_script
 
 
 def rss_mb() -> float:
@@ -116,19 +118,34 @@ def figure(report: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
+@dataclasses.dataclass(frozen=True)
+class SoakOptions:
+    """The keys of ``scripts/soak.py``.
+
+    Attributes:
+        steps: Environment steps in all (all 7 stages in turn).
+        seed: Environment seed.
+        every: Steps between two resident-memory samples.
+        figure: Figure of memory against steps (empty: none).
+    """
+
+    steps: int = 1_000_000
+    seed: int = 0
+    every: int = 10_000
+    figure: str = "docs/media/soak.png"
+
+
 def main(argv: list[str]) -> int:
-    """Parse ``key=value`` arguments, soak, print the report; 1 on > 5 % growth."""
-    defaults = {"steps": 1_000_000, "seed": 0, "every": 10_000, "figure": "docs/media/soak.png"}
-    try:
-        opts, extra = split_args(argv, defaults)
-        if extra:
-            raise ConfigError(f"unexpected task overrides {extra}")
-    except ConfigError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    report = run(int(opts["steps"]), int(opts["seed"]), int(opts["every"]))
-    if opts["figure"]:
-        figure(report, Path(str(opts["figure"])))
+    """Parse ``key=value`` arguments (``--help``: the keys), soak, print the report; 1 on > 5 % growth."""
+    return run_script(argv, "scripts/soak.py", "Step every stage for a long time and watch resident memory.",
+                      SoakOptions, _main)
+
+
+def _main(parsed: Parsed) -> int:
+    opts: SoakOptions = parsed.options
+    report = run(opts.steps, opts.seed, opts.every)
+    if opts.figure:
+        figure(report, Path(opts.figure))
     print(json.dumps({k: v for k, v in report.items() if k != "samples"}, indent=1))
     return 1 if report["growth"] > 0.05 else 0
 

@@ -1,13 +1,13 @@
-"""scripts/benchmark.py: interleaved rounds and the per-part breakdown."""
+"""mjnav.bench.throughput (``mjnav bench throughput``): interleaved rounds and the per-part breakdown."""
 
 import numpy as np
 
 from mjnav.config import load_task
-from tests._scripts import load_script
+from mjnav.bench import throughput
 
 
 def _script():
-    return load_script("benchmark")
+    return throughput
 
 
 def test_adapter_rows_cover_one_two_and_all_cores() -> None:

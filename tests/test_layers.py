@@ -24,7 +24,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mjnav"
 #: The layer order, lowest first (see the module docstring).
 LAYERS: list[list[str]] = [
     ["mjnav.registry", "mjnav.timing"],
-    ["mjnav.schema", "mjnav.geometry"],
+    ["mjnav.schema", "mjnav.args", "mjnav.geometry"],
     ["mjnav.control"],
     ["mjnav.world", "mjnav.tasks", "mjnav.tasks.design", "mjnav.tasks.privileged"],
     ["mjnav.config"],
@@ -34,7 +34,7 @@ LAYERS: list[list[str]] = [
     ["mjnav.viz", "mjnav.envs"],
     ["mjnav.policy"],
     ["mjnav.train", "mjnav.eval"],
-    ["mjnav.export", "mjnav.cli", "mjnav.train.__main__", "mjnav"],
+    ["mjnav.export", "mjnav.bench", "mjnav.verbs", "mjnav.cli", "mjnav.__main__", "mjnav.train.__main__", "mjnav"],
 ]
 
 

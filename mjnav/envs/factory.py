@@ -6,7 +6,7 @@ from pathlib import Path
 
 from dm_control import composer
 
-from mjnav.config import TaskConfig, load_task
+from mjnav.config import TaskConfig, load_task, override_task
 from mjnav.envs.environment import NavEnvironment
 from mjnav.schema import apply_overrides
 from mjnav.tasks.nav import CrowdNavTask
@@ -17,7 +17,7 @@ __all__ = ["make_env", "resolve_config"]
 def resolve_config(task: str | Path | TaskConfig, overrides: dict | list[str] | None = None) -> TaskConfig:
     """A :class:`TaskConfig` from a stage name, a YAML path or a config, with dotted overrides."""
     if isinstance(task, TaskConfig):
-        return apply_overrides(task, overrides or {})
+        return override_task(task, overrides)
     return load_task(task, overrides)
 
 

@@ -37,9 +37,12 @@ from mjnav.eval.metrics import (
     summary_row,
     write_csv,
 )
+from mjnav.args import Grammar, parse
 from mjnav.schema import ConfigError
 
 __all__ = [
+    "EvaluateOptions",
+    "grammar",
     "HELD_OUT_BASE",
     "EpisodeTrace",
     "EvalError",
@@ -612,63 +615,75 @@ def evaluate_tasks(
 
 # ---------------------------------------------------------------------------- command line
 
-_USAGE = ("usage: evaluate.py task=stage6 policy=PATH_OR_NAME [episodes=1000] [tasks=stage5,stage6] "
-          "[workers=N] [out=DIR] [seed_offset=0] [action=mean|expected|sample] [from_contact=DIR] "
-          "[task.KEY=VALUE ...] [planner.KEY=VALUE ...]")
+@dataclasses.dataclass(frozen=True)
+class EvaluateOptions:
+    """The ``evaluate`` verb's own keys (``mjnav evaluate --help``).
+
+    Attributes:
+        policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a baseline (mpc_goal,
+            mpc_gap, mpc_crowd, teb, dwa, random_jerk); required.
+        task: Bundled stage name or task YAML path.
+        tasks: Comma-separated stages, one evaluation each (instead of ``task``).
+        episodes: Held-out scenarios per task.
+        workers: Worker processes (0: this process; default: one per CPU core).
+        out: Output folder (default ``evals/<policy>``).
+        seed_offset: Scenario i uses the episode seed 2**32 + seed_offset + i (never a training seed).
+        action: ``mean`` (the policy's mean action), ``expected`` or ``sample`` (its Gaussian; checkpoints only).
+        from_contact: Folder of a contact-rule evaluation of the same policy, seeds and commit whose
+            settled episodes a ``task.collision=scan`` evaluation takes.
+    """
+
+    policy: str | None = None
+    task: str = "stage6"
+    tasks: str | None = None
+    episodes: int = 1000
+    workers: int | None = None
+    out: str | None = None
+    seed_offset: int = 0
+    action: str = "mean"
+    from_contact: str | None = None
+
+
+def grammar() -> Grammar:
+    """What ``evaluate`` accepts: :class:`EvaluateOptions`, ``task.*`` overrides and ``planner.*`` parameters."""
+    from mjnav.config import TASK_SECTIONS
+
+    return Grammar(EvaluateOptions, ("task", "planner"), {}, TASK_SECTIONS)
 
 
 def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
-    """``key=value`` arguments → evaluation specs (one per task), the output folder and the
-    ``from_contact`` folder (None when not given).
+    """``key=value`` arguments (:mod:`mjnav.args`) → evaluation specs (one per task), the output
+    folder and the ``from_contact`` folder (None when not given).
 
     Raises:
         ValueError: On an unknown key, a missing policy or a malformed argument.
     """
-    args: dict[str, str] = {}
-    overrides: list[str] = []
-    planner: list[str] = []
-    for item in argv:
-        key, sep, value = item.partition("=")
-        if not sep:
-            raise ValueError(f"expected key=value, got {item!r}\n{_USAGE}")
-        if key.startswith("task."):
-            overrides.append(f"{key[5:]}={value}")
-        elif key.startswith("planner."):
-            planner.append(f"{key[8:]}={value}")
-        elif key in ("task", "tasks", "policy", "episodes", "workers", "out", "seed_offset", "action", "from_contact"):
-            args[key] = value
-        else:
-            raise ValueError(f"unknown argument {key!r}\n{_USAGE}")
-    if "policy" not in args:
-        raise ValueError(f"policy= is required\n{_USAGE}")
-    tasks = args.get("tasks", args.get("task", "stage6")).split(",")
-    workers = _integer(args, "workers", os.cpu_count() or 1, minimum=0)
-    episodes = _integer(args, "episodes", 1000, minimum=1)
-    offset = _integer(args, "seed_offset", 0, minimum=0)
+    parsed = parse(argv, grammar())
+    opts = parsed.options
+    if opts.policy is None:
+        raise ValueError("policy= is required (mjnav evaluate --help)")
+    workers = _at_least("workers", os.cpu_count() or 1 if opts.workers is None else opts.workers, 0)
+    episodes, offset = _at_least("episodes", opts.episodes, 1), _at_least("seed_offset", opts.seed_offset, 0)
     from mjnav.eval.policies import ACTION_MODES
     from mjnav.policy import training_overrides
 
     try:
-        trained = training_overrides(args["policy"])
+        trained = training_overrides(opts.policy)
     except FileNotFoundError as err:
         raise ValueError(str(err)) from None
-    action = args.get("action", "mean")
-    if action not in ACTION_MODES:
-        raise ValueError(f"action: expected one of {ACTION_MODES}, got {action!r}")
-    specs = [EvalSpec(t.strip(), args["policy"], episodes, offset, tuple(overrides), workers, trained, action,
-                      tuple(planner)) for t in tasks if t.strip()]
-    out = Path(args.get("out", Path("evals") / args["policy"].replace(os.sep, "_").removesuffix(".pt")))
-    from_contact = Path(args["from_contact"]) if "from_contact" in args else None
+    if opts.action not in ACTION_MODES:
+        raise ValueError(f"action: expected one of {ACTION_MODES}, got {opts.action!r}")
+    tasks = (opts.tasks or opts.task).split(",")
+    specs = [EvalSpec(t.strip(), opts.policy, episodes, offset, parsed.task, workers, trained, opts.action,
+                      parsed.planner) for t in tasks if t.strip()]
+    out = Path(opts.out or Path("evals") / opts.policy.replace(os.sep, "_").removesuffix(".pt"))
+    from_contact = Path(opts.from_contact) if opts.from_contact is not None else None
     if from_contact is not None and not from_contact.is_dir():
         raise ValueError(f"from_contact: no such folder {str(from_contact)!r}")
     return specs, out, from_contact
 
 
-def _integer(args: dict[str, str], key: str, default: int, minimum: int) -> int:
-    try:
-        value = int(args.get(key, default))
-    except ValueError:
-        raise ValueError(f"{key}: expected an integer, got {args[key]!r}") from None
+def _at_least(key: str, value: int, minimum: int) -> int:
     if value < minimum:
         raise ValueError(f"{key}: must be >= {minimum}, got {value}")
     return value

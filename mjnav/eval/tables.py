@@ -1,6 +1,6 @@
 """The paper's tables from held-out evaluations, with the paper's numbers side by side.
 
-``python scripts/paper_tables.py table=K`` (K = 2: Designs 1-4 and Ours on stages 2-4; 3: the
+``mjnav tables table=K`` (``scripts/paper_tables.py``) (K = 2: Designs 1-4 and Ours on stages 2-4; 3: the
 reward ablation r_t1-r_t4 on stages 5-7, with Total Abs Acc; 4: Ours against TEB on stages 5-7)
 reads one evaluation JSONL per (method, stage, collision rule) from ``out`` (default
 ``evals/paper``), runs the missing evaluations (:func:`mjnav.eval.runner.evaluate`, ``episodes``

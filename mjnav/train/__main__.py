@@ -1,4 +1,4 @@
-"""``python -m mjnav.train task=stage6 ...``: the same as ``mjnav-train`` and ``scripts/train.py``."""
+"""``python -m mjnav.train task=stage6 ...``: the same as ``mjnav train``."""
 
 import sys
 

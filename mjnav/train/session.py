@@ -1,23 +1,7 @@
-"""A training session as ``scripts/train.py`` runs it: arguments, run folder, resume, export.
+"""A training session as ``mjnav train`` runs it: arguments, run folder, resume, export.
 
-Arguments are ``key=value`` (values parsed as YAML)::
-
-    task=stage6            bundled stage name or YAML path (not needed with curriculum/resume)
-    task.<key>=<value>     TaskConfig override (task.crowd.count=25)
-    train.<key>=<value>    TrainConfig override (train.num_envs=16, train.policy.init_log_std=-1)
-    seed=3                 same as train.seed=3
-    resume=RUN_DIR         continue RUN_DIR from its latest checkpoint up to train.iterations
-    init=CHECKPOINT        start a new run from a checkpoint's actor and critic weights
-    curriculum=true        walk stage1 -> stage7 (train.curriculum.*); without train.iterations= the
-                           cap is every stage's whole budget (:func:`curriculum_iterations`)
-    start=auto             where a new run on stage K starts (:func:`resolve_start`): ``shipped``
-                           (init from ``docs/policies/stage<K-1>_checkpoint.pt`` with the task
-                           overrides and the PPO config, budget included, it was trained with),
-                           ``curriculum`` (walk
-                           stage 1 -> K), ``scratch`` (random weights, stage K only); ``auto``
-                           (default) is ``shipped`` where that file exists, else ``curriculum``
-                           for K >= 2, else ``scratch``; init=/resume=/curriculum=true win
-    out=runs               parent folder of the run folders
+The arguments are :class:`TrainOptions` plus ``task.*``/``train.*`` overrides and ``seed=`` (the same
+as ``train.seed=``), in the grammar of :mod:`mjnav.args`; ``mjnav train --help`` lists them.
 
 Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
 configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
@@ -28,6 +12,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shlex
+import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -35,7 +21,8 @@ from typing import Any
 
 import yaml
 
-from mjnav.schema import ConfigError, apply_overrides, from_dict, parse_override, to_dict
+from mjnav.args import Grammar, parse
+from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
 from mjnav.train import curriculum as stages
 from mjnav.train.config import TrainConfig, load_train
 from mjnav.train.curriculum import CurriculumState, run_curriculum, stage_name
@@ -52,11 +39,10 @@ from mjnav.train.runner import (
 )
 
 __all__ = [
-    "RunArgs", "RunPlan", "check_device", "curriculum_iterations", "parse_args", "plan_run", "resolve_start", "run",
-    "shipped_checkpoint",
+    "RunArgs", "RunPlan", "TrainOptions", "check_device", "curriculum_iterations", "grammar", "parse_args", "plan_run",
+    "resolve_start", "resume_command", "run", "shipped_checkpoint",
 ]
 
-_TOP_LEVEL = {"task": str, "seed": int, "resume": str, "init": str, "curriculum": bool, "out": str, "start": str}
 START_MODES = ("auto", "shipped", "curriculum", "scratch")
 #: Shipped policies of a source checkout (absent from an installed wheel: ``start=auto`` then walks the curriculum).
 SHIPPED_POLICIES = Path(__file__).resolve().parents[2] / "docs" / "policies"
@@ -90,34 +76,47 @@ class RunPlan:
     start: str = "scratch"
 
 
+@dataclasses.dataclass(frozen=True)
+class TrainOptions:
+    """The ``train`` verb's own keys (``mjnav train --help``).
+
+    Attributes:
+        task: Bundled stage name or task YAML path (not needed with curriculum or resume).
+        resume: Continue this run folder from its latest checkpoint up to ``train.iterations``.
+        init: Start a new run from this checkpoint's actor and critic weights.
+        curriculum: Walk stage1 -> stage7 (``train.curriculum.*``); without ``train.iterations=`` the
+            cap is every stage's whole budget.
+        out: Parent folder of the run folders.
+        start: Where a new run on stage K starts: ``shipped`` (the shipped stage K-1 policy),
+            ``curriculum`` (walk stage 1 -> K), ``scratch`` or ``auto`` (shipped, else curriculum
+            for K >= 2, else scratch); init=/resume=/curriculum=true win.
+    """
+
+    task: str | None = None
+    resume: str | None = None
+    init: str | None = None
+    curriculum: bool = False
+    out: str = "runs"
+    start: str = "auto"
+
+
+def grammar() -> Grammar:
+    """What ``train`` accepts: :class:`TrainOptions`, ``task.*`` and ``train.*`` overrides, ``seed=`` (``train.seed=``)."""
+    from mjnav.config import TASK_SECTIONS
+
+    return Grammar(TrainOptions, ("task", "train"), {"seed": "train.seed"}, TASK_SECTIONS)
+
+
 def parse_args(argv: Sequence[str]) -> RunArgs:
-    """Parse ``key=value`` arguments.
+    """Parse ``key=value`` arguments (:mod:`mjnav.args`).
 
     Raises:
         ConfigError: Unknown key (named in the message), malformed argument or wrong value type.
     """
-    fields: dict[str, Any] = {}
-    task_overrides: list[str] = []
-    train_overrides: list[str] = []
-    for text in argv:
-        key, value = parse_override(text)
-        raw = text.split("=", 1)[1]
-        if key.startswith("task."):
-            task_overrides.append(f"{key[5:]}={raw}")
-        elif key.startswith("train."):
-            train_overrides.append(f"{key[6:]}={raw}")
-        elif key == "seed":
-            train_overrides.append(f"seed={raw}")
-        elif key in _TOP_LEVEL:
-            if not isinstance(value, _TOP_LEVEL[key]) or isinstance(value, bool) != (_TOP_LEVEL[key] is bool):
-                raise ConfigError(f"{key}: expected a {_TOP_LEVEL[key].__name__}, got {value!r}")
-            fields[key] = value
-        else:
-            known = ", ".join(f"{k}=" for k in _TOP_LEVEL)
-            raise ConfigError(f"{key}: unknown argument (known: {known}, task.<key>=, train.<key>=)")
-    if fields.get("start", "auto") not in START_MODES:
-        raise ConfigError(f"start: expected one of {', '.join(START_MODES)}, got {fields['start']!r}")
-    return RunArgs(task_overrides=tuple(task_overrides), train_overrides=tuple(train_overrides), **fields)
+    parsed = parse(argv, grammar())
+    if parsed.options.start not in START_MODES:
+        raise ConfigError(f"start: expected one of {', '.join(START_MODES)}, got {parsed.options.start!r}")
+    return RunArgs(task_overrides=parsed.task, train_overrides=parsed.train, **dataclasses.asdict(parsed.options))
 
 
 def _task_from_dict(data: dict[str, Any], overrides: list[str]) -> Any:
@@ -397,9 +396,15 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
                 )
         except TrainingInterrupted:
             path = save_checkpoint(runner, plan.run_dir)
-            print(f"saved {path}\ncontinue with: python scripts/train.py resume={plan.run_dir}", flush=True)
+            print(f"saved {path}\ncontinue with: {resume_command(plan.run_dir)}", flush=True)
             return False
     return True
+
+
+def resume_command(run_dir: Path) -> str:
+    """The shell command that continues ``run_dir``: this interpreter's absolute path, so it works
+    without activating the virtual environment."""
+    return shlex.join([sys.executable, "-m", "mjnav", "train", f"resume={run_dir}"])
 
 
 def _start_line(plan: RunPlan) -> str:

@@ -58,16 +58,15 @@ def test_learning_curve_from_events(tmp_path):
 
 
 def test_success_by_distance_figure_and_command(tmp_path):
-    """scripts/plot.py distance writes the figure and prints the table; a missing file is an error."""
+    """``mjnav plot distance`` writes the figure and prints the table; a missing file is an error."""
     import json
 
-    from tests._scripts import load_script
+    from mjnav.verbs import plot
 
     rows = [{"start": [0.0, 0.0], "goal": [d, 0.0], "outcome": "success" if d < 5 else "collision"}
             for d in np.linspace(1.0, 9.0, 40)]
     (tmp_path / "a").mkdir()
     (tmp_path / "a" / "stage7.jsonl").write_text("\n".join(json.dumps(r) for r in rows))
-    plot = load_script("plot")
     out = tmp_path / "d.png"
     assert plot.main(["distance", f"evals={tmp_path / 'a' / 'stage7.jsonl'}", f"out={out}"]) == 0
     assert _is_png(out)
