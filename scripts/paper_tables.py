@@ -2,12 +2,13 @@
 
     python scripts/paper_tables.py table=2|3|4 [episodes=1000] [out=evals/paper] [workers=2]
                                    [seed_offset=0] [run=true] [action=mean|expected|sample]
-                                   [methods=Ours,TEB]
+                                   [methods=Ours,TEB] [social=false]
 
 Reads ``<out>/<method>/<stage>_<rule>.jsonl``, runs the evaluations that are missing
 (``run=false``: report them as missing, or an unfinished one as "n of N" episodes so far) and prints the table in markdown.
 ``methods`` keeps only the named methods (names as the table prints them), e.g. to re-run Ours
-after retraining it without touching the baselines' records.
+after retraining it without touching the baselines' records. ``social=true`` adds a table of the
+social-navigation metrics (see :mod:`mjnav.eval.social`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ def main(argv: list[str]) -> int:
     from mjnav.eval.tables import TABLES, format_table, table_rows
 
     defaults = {"table": 2, "episodes": 1000, "out": "evals/paper", "workers": os.cpu_count() or 1,
-                "seed_offset": 0, "run": True, "action": "mean", "methods": ""}
+                "seed_offset": 0, "run": True, "action": "mean", "methods": "", "social": False}
     try:
         opts, extra = split_args(argv, defaults)
         if extra:
@@ -41,7 +42,7 @@ def main(argv: list[str]) -> int:
     except (ConfigError, ValueError, FileNotFoundError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(format_table(rows, TABLES[table].abs_acc), end="")
+    print(format_table(rows, TABLES[table].abs_acc, bool(opts["social"])), end="")
     return 0
 
 

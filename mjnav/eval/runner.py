@@ -9,9 +9,11 @@ their own random stream, ``default_rng([seed, 1])``, so they cannot shift the sc
 
 Each worker process builds its environment and loads the policy once, then runs episodes by
 index. Results: one JSON line per episode (``<task>.jsonl``), ``summary.csv`` and
-``summary.md`` (one row per task) in the output folder. Episodes are appended to the JSONL as
-they finish, so an evaluation that is interrupted and started again with the same arguments runs
-only the missing episodes (never duplicates); at the end the file is rewritten sorted by index.
+``summary.md`` (one row per task) in the output folder; each record also carries the episode's
+social-navigation metrics and collision kind (:mod:`mjnav.eval.social`). Episodes are appended to
+the JSONL as they finish, so an evaluation that is interrupted and started again with the same
+arguments runs only the missing episodes (never duplicates); at the end the file is rewritten
+sorted by index.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import multiprocessing as mp
 import os
 import subprocess
@@ -37,6 +40,7 @@ from mjnav.eval.metrics import (
     summary_row,
     write_csv,
 )
+from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.schema import ConfigError
 
 __all__ = [
@@ -125,12 +129,14 @@ class EpisodeTrace:
         pedestrians: (T+1, P, 3) pedestrian circles ``[x, y, r]``.
         plans: Per control step, what the action layer decided (``position`` planned from,
             ``polygon``, ``q_s``, ``q_l``, ``predicted``); empty for baselines.
+        control_period: Time between two samples, seconds.
     """
 
     positions: np.ndarray
     velocities: np.ndarray
     pedestrians: np.ndarray
     plans: list[dict[str, np.ndarray]] = dataclasses.field(default_factory=list)
+    control_period: float = math.nan
 
 
 def git_commit(path: str | Path | None = None) -> str:
@@ -178,6 +184,7 @@ class _Recorder:
         # Under the contact rule, where the paper's rule would have ended the episode (see paper_rule)
         self.watch_scan = env.task.config.collision == "contact"
         self.scan_cut: dict[str, Any] | None = None
+        self.scan_kind: str | None = None  # what the shortest beam hit when the shrunk scan first reached 0
 
     def _planner_stats(self) -> dict[str, int]:
         return dict(getattr(getattr(self.agent.planner, "planner", None), "stats", {}) or {})
@@ -200,6 +207,8 @@ class _Recorder:
             self.solve.append(1e3 * record.solve_time_s)
             self.plans.append({"position": record.position.copy(), "polygon": record.polygon,
                                "q_s": record.q_s.copy(), "q_l": record.q_l.copy(), "predicted": record.predicted})
+        if self.scan_kind is None and self.task.core.min_scan <= 0.0 and len(self.positions) > 1:
+            self.scan_kind = self.task.scan_hit_kind(self.env.physics) or "unknown"
         if self.watch_scan and self.scan_cut is None and self.task.core.min_scan <= 0.0:
             self.scan_cut = self._snapshot()
 
@@ -207,8 +216,28 @@ class _Recorder:
         """Metrics, planner statistics and trace of the whole episode."""
         now = self._snapshot()
         metrics, stats = self._metrics(outcome, now["samples"], now["solve"], now["counters"], now["planner_stats"])
-        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans)
+        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans,
+                             self.task.config.timing.control_period)
         return metrics, stats, trace
+
+    def collision_kind(self, outcome: str, rule: str) -> str | None:
+        """What a collision under ``rule`` hit (``pedestrian``, ``obstacle``, ``wall``; None without one).
+
+        The contact rule: the kind of the robot's deepest MuJoCo contact (:meth:`NavSim.robot_in_collision`);
+        the paper's rule: what the shortest beam hit (:meth:`CrowdNavTask.scan_hit_kind`), ``unknown``
+        when that beam, cast without noise, hits nothing (only the range noise made it short).
+        """
+        if outcome != "collision":
+            return None
+        return self.task.contact_kind if rule == "contact" else self.scan_kind
+
+    def social(self, outcome: str, samples: int | None = None) -> dict[str, Any]:
+        """Social metrics (:func:`mjnav.eval.social.social_metrics`) of the first ``samples`` instants."""
+        layout = self.task.layout
+        return social_metrics(np.array(self.positions[:samples]), np.array(self.velocities[:samples]),
+                              _stack_peds(self.peds[:samples]), self.task.config.timing.control_period,
+                              self.radius, layout.start, layout.goal, outcome,
+                              self.task.config.reward.goal_tolerance).to_dict()
 
     def paper_rule(self, outcome: str) -> dict[str, Any] | None:
         """This contact-rule episode's outcome and metrics under the paper's rule (``collision=scan``).
@@ -223,7 +252,9 @@ class _Recorder:
         cut = self.scan_cut or self._snapshot()
         metrics, stats = self._metrics("collision" if self.scan_cut else outcome, cut["samples"], cut["solve"],
                                        cut["counters"], cut["planner_stats"])
-        return {"outcome": metrics.outcome, "metrics": metrics.to_dict(), "planner_stats": stats}
+        return {"outcome": metrics.outcome, "metrics": metrics.to_dict(), "planner_stats": stats,
+                "collision_kind": self.collision_kind(metrics.outcome, "scan"),
+                "social": self.social(metrics.outcome, cut["samples"])}
 
     def _metrics(self, outcome: str, samples: int, solves: int, counters: dict[str, int],
                  planner_stats: dict[str, int]) -> tuple[EpisodeMetrics, dict[str, int]]:
@@ -284,8 +315,9 @@ def run_episode(
         seed: Episode seed.
 
     Returns:
-        (metrics, extras with ``planner_stats``, ``start``, ``goal`` and, under the contact rule,
-        ``paper_rule`` (:meth:`_Recorder.paper_rule`), trace).
+        (metrics, extras with ``planner_stats``, ``start``, ``goal``, ``collision_kind``, ``social``
+        (:mod:`mjnav.eval.social`) and, under the contact rule, ``paper_rule``
+        (:meth:`_Recorder.paper_rule`), trace).
     """
     base = env.unwrapped  # wrappers (TimeLimit, RecordEpisodeStatistics, ...) do not forward task/physics
     agent.begin(base.task, seed)
@@ -300,7 +332,9 @@ def run_episode(
         done = terminated or truncated
     metrics, stats, trace = rec.finish(info["outcome"])
     layout = base.task.layout
-    extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist()}
+    extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist(),
+              "collision_kind": rec.collision_kind(metrics.outcome, base.task.config.collision),
+              "social": rec.social(metrics.outcome)}
     if rec.watch_scan:
         extras["paper_rule"] = rec.paper_rule(info["outcome"])
     return metrics, extras, trace
@@ -401,8 +435,9 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         progress: Show a progress bar (tqdm) or a plain counter on stderr.
 
     Returns:
-        The summary row (:func:`mjnav.eval.metrics.summary_row` plus ``task_version``,
-        ``commit``, ``seed_offset``).
+        The summary row (:func:`mjnav.eval.metrics.summary_row`, the social metrics'
+        :func:`mjnav.eval.social.aggregate_social`, ``task_version``, ``commit``, ``seed_offset``) of
+        episodes 0 .. ``spec.episodes`` − 1.
     """
     common = _common(spec)
     task, policy_name, commit = common["task"], common["policy"], common["commit"]
@@ -422,8 +457,8 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         partial.write_text("".join(json.dumps({**common, **_episode(r)}) + "\n" for r in rows), encoding="utf-8")
         os.replace(partial, path)  # sorted by index, written atomically
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
-    return {**summary_row(summary, task, policy_name), "task_version": common["task_version"],
-            "commit": commit, "seed_offset": spec.seed_offset}
+    return {**summary_row(summary, task, policy_name), **aggregate_social(rows),
+            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset}
 
 
 def _common(spec: EvalSpec) -> dict[str, Any]:

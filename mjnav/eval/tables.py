@@ -28,9 +28,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from mjnav.eval.metrics import wilson
+from mjnav.eval.social import aggregate_social
 from mjnav.eval.runner import read_jsonl as load_rows
 
-__all__ = ["TABLES", "Method", "Table", "format_strata", "format_table", "load_rows", "success_by_distance",
+__all__ = ["TABLES", "Method", "Table", "format_social", "format_strata", "format_table", "load_rows",
+           "success_by_distance",
            "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
@@ -106,16 +109,6 @@ TABLES: dict[int, Table] = {
 }
 
 
-def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """95 % Wilson score interval of a rate (fractions); (nan, nan) for n = 0."""
-    if n <= 0:
-        return math.nan, math.nan
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
 def success_by_distance(rows: Sequence[dict[str, Any]], edges: Sequence[float] = (0.0, 2.0, 4.0, 6.0, 8.0)
                         ) -> list[dict[str, Any]]:
     """Success rate by straight start-goal distance: how a method's result depends on the trip.
@@ -174,6 +167,7 @@ def _stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     for key, name in (("time_s", "time"), ("distance_m", "distance"), ("mean_speed", "speed")):
         out[name] = sum(r["metrics"][key] for r in wins) / len(wins) if wins else math.nan
     out["abs_acc"] = sum(r["metrics"].get("abs_acc_sum", math.nan) for r in wins)  # the paper's sum over successes
+    out["social"] = aggregate_social(rows)
     return out
 
 
@@ -298,10 +292,55 @@ def _paper(values: tuple[float, ...]) -> str:
     return text
 
 
-def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False) -> str:
+def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False, social: bool = False) -> str:
     """Markdown: stage, method, paper, ours under both rules (success with CI, collisions), time/distance/speed
     (and, with ``abs_acc``, the paper's Total Abs Acc) over the successes under the paper's rule, action mode,
-    episodes."""
+    episodes; with ``social``, then a second table of the social metrics (:func:`format_social`)."""
+    if social:
+        return _format_paper(rows, abs_acc) + "\n" + format_social(rows)
+    return _format_paper(rows, abs_acc)
+
+
+#: Social columns of :func:`format_social`: (summary key, label, rate with a Wilson interval or number format).
+_SOCIAL_TABLE = (
+    ("mean_min_ped_distance_m", "min gap to a pedestrian m", "{:.3f}"),
+    ("intrusion_share", "intrusion % steps [95 % CI]", "rate"),
+    ("personal_share", "personal space % steps [95 % CI]", "rate"),
+    ("social_share", "social zone % steps [95 % CI]", "rate"),
+    ("near_misses_per_episode", "near misses / ep.", "{:.2f}"),
+    ("mean_min_ttc_s", "min TTC s", "{:.2f}"),
+    ("path_efficiency", "path efficiency", "{:.3f}"),
+    ("spl", "SPL", "{:.3f}"),
+    ("stopped_time_s", "stopped s", "{:.2f}"),
+    ("collision_pedestrian_rate", "collisions with pedestrians % [95 % CI]", "rate"),
+    ("collision_obstacle_rate", "with obstacles % [95 % CI]", "rate"),
+    ("collision_wall_rate", "with walls % [95 % CI]", "rate"),
+)
+
+
+def format_social(rows: Sequence[dict[str, Any]]) -> str:
+    """Markdown: the social metrics (:mod:`mjnav.eval.social`) of each row under the paper's rule (– where
+    the records predate them); thresholds as in :data:`mjnav.eval.social.THRESHOLDS`."""
+    lines = ["| stage | method | " + " | ".join(label for _, label, _ in _SOCIAL_TABLE) + " |",
+             "|" + "---|" * (2 + len(_SOCIAL_TABLE))]
+    for row in rows:
+        summary = ((row.get("scan") or {}).get("social") or {}) if row["status"] == "ok" else {}
+        cells = [_social_cell(summary, key, fmt) for key, _, fmt in _SOCIAL_TABLE]
+        lines.append(f"| {row['stage']} | {row['method']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _social_cell(summary: dict[str, float], key: str, fmt: str) -> str:
+    value = summary.get(key, math.nan)
+    if value is None or math.isnan(value):
+        return "–"
+    if fmt == "rate":
+        return f"{100 * value:.1f} [{100 * summary[key + '_lo']:.1f}, {100 * summary[key + '_hi']:.1f}]"
+    return fmt.format(value)
+
+
+def _format_paper(rows: Sequence[dict[str, Any]], abs_acc: bool) -> str:
+    """The paper's columns of :func:`format_table`."""
     extra = ["time s", "distance m", "speed m/s"] + (["Total Abs Acc"] if abs_acc else [])
     paper = "paper success % (time, distance, speed" + (", Total Abs Acc)" if abs_acc else ")")
     head = (f"| stage | method | {paper} | success %, paper's rule [95 % CI] | collision %, paper's rule "

@@ -215,6 +215,9 @@ def test_contact_run_settles_the_paper_rule_exactly(tmp_path, policy):
         mine, theirs = dict(r["metrics"]), dict(direct[r["index"]]["metrics"])
         assert len(mine.pop("solve_times_ms")) == len(theirs.pop("solve_times_ms"))
         assert (r["outcome"], mine) == (direct[r["index"]]["outcome"], theirs)
+        same = ("collision_kind", "social")  # what was hit (shortest beam's object) and the social metrics too
+        assert [r[k] for k in same] == [direct[r["index"]][k] for k in same]
+        assert (r["collision_kind"] is not None) == (r["outcome"] == "collision")
     calls = []
     original = runner._results
     try:
