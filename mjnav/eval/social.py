@@ -136,9 +136,9 @@ class SocialMetrics:
     ped_accel_far: float
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (NaN and infinities → None)."""
-        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                for k, v in dataclasses.asdict(self).items()}
+        """JSON-ready dict of Python numbers (NaN and infinities → None)."""
+        out = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in dataclasses.asdict(self).items()}
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in out.items()}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> SocialMetrics:
@@ -207,9 +207,9 @@ def _near_misses(gaps: np.ndarray, th: SocialThresholds) -> int:
             elif inside:
                 lowest = min(lowest, gap)
                 if gap > release:
-                    count += lowest > 0.0
+                    count += int(lowest > 0.0)
                     inside = False
-        count += inside and lowest > 0.0
+        count += int(inside and lowest > 0.0)
     return count
 
 

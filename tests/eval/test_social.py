@@ -89,6 +89,7 @@ def test_near_misses_are_distinct_approaches_without_contact() -> None:
     still = np.zeros((n, 2))
     m = social_metrics(still, still, peds, DT, 0.3, (0, 0), (1, 0), "collision")
     assert m.near_misses == 2 and m.min_ped_distance_m == pytest.approx(-0.05)
+    assert json.loads(json.dumps(m.to_dict()))["near_misses"] == 2  # plain Python numbers, JSON-ready
     assert m.intrusion_steps == 4  # instants 1..T below 0.2 m: .15, .15, .1, −.05
     assert m.ped_accel_near > 0  # the pedestrian moves back and forth
 
