@@ -23,6 +23,7 @@ from mjnav.schema import ConfigError, split_args
 def main(argv: list[str]) -> int:
     """Parse ``key=value`` arguments, build the table, print it; returns the exit code."""
     from mjnav.eval.policies import ACTION_MODES
+    from mjnav.eval.runner import EvalError
     from mjnav.eval.tables import TABLES, format_table, table_rows
 
     defaults = {"table": 2, "episodes": 1000, "out": "evals/paper", "workers": os.cpu_count() or 1,
@@ -39,7 +40,7 @@ def main(argv: list[str]) -> int:
         names = [n.strip() for n in str(opts["methods"]).split(",") if n.strip()] or None
         rows = table_rows(table, Path(str(opts["out"])), int(opts["episodes"]), int(opts["seed_offset"]),
                           int(opts["workers"]), bool(opts["run"]), str(opts["action"]), names)
-    except (ConfigError, ValueError, FileNotFoundError) as err:
+    except (ConfigError, ValueError, FileNotFoundError, EvalError) as err:  # EvalError: a file of another evaluation
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_table(rows, TABLES[table].abs_acc, bool(opts["social"])), end="")

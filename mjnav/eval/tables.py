@@ -13,9 +13,11 @@ A method whose policy file does not exist is listed as "not trained", never esti
 ``*.pt``; ``action=sample`` samples its Gaussian through the shipped ``*_checkpoint.pt``.
 
 Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
-a policy shared by two tables is evaluated once). A file whose episode count, seed offset, policy
-or action mode differs from the request, or whose policy file (a baseline: its parameters,
-:func:`mjnav.eval.runner.policy_sha256`) has changed since, is evaluated again. The contact rule is run first: its
+a policy shared by two tables is evaluated once). A file with more episodes than requested answers
+with its first ones. A file with fewer, or whose seed offset, policy or action mode differs from the
+request, or whose policy file (a baseline: its parameters, :func:`mjnav.eval.runner.policy_sha256`)
+has changed since, is evaluated again; records of another evaluation are kept, renamed
+``<stage>_<rule>.<commit>-<sha>.jsonl``, never deleted. The contact rule is run first: its
 episodes carry their outcome under the paper's rule wherever they determine it
 (:func:`mjnav.eval.runner.settle_from_contact`), so the paper's-rule run only plays the rest.
 """
@@ -24,6 +26,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import math
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -209,7 +212,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                 continue
             for rule in ("contact", "scan"):  # the contact run settles most episodes of the paper's rule
                 path = evaluation_path(out, method, stage, rule, mode)
-                found = load_rows(path)
+                found = _first(load_rows(path), episodes)
                 if not _matches(found, episodes, seed_offset, policy, mode):
                     if not run_missing:  # an unfinished run (resumable) shows as what it has so far
                         partial = _prefix(load_rows(path.parent / f"{stage}.jsonl"), rule, seed_offset, policy, mode,
@@ -223,11 +226,32 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                         contact = evaluation_path(out, method, stage, "contact", mode)
                         settle_from_contact(spec, contact, path.parent)
                     evaluate(spec, path.parent, progress=True)
-                    path.parent.joinpath(f"{stage}.jsonl").replace(path)
-                    found = load_rows(path)
+                    _replace_keeping(path.parent / f"{stage}.jsonl", path)
+                    found = _first(load_rows(path), episodes)
                 row[rule] = _stats(found)
             rows.append({**row, "status": "ok"})
     return rows
+
+
+def _replace_keeping(new: Path, path: Path) -> None:
+    """Move the evaluation ``new`` to ``path``; records already at ``path`` from another evaluation (other
+    policy version, commit, seeds or overrides) are first moved aside to ``<stem>.<commit>-<sha>.jsonl``."""
+    from mjnav.eval.runner import _SPEC_KEYS
+
+    old, now = load_rows(path)[:1], load_rows(new)[:1]
+    if old and now and any(old[0].get(k) != now[0].get(k) for k in (*_SPEC_KEYS, "seed")):
+        aside = f"{str(old[0].get('commit'))[:8]}-{old[0].get('policy_sha256')}"
+        path.replace(path.with_name(f"{path.stem}.{aside}.jsonl"))
+        print(f"kept the earlier evaluation {path} as {path.stem}.{aside}.jsonl", file=sys.stderr)
+    new.replace(path)
+
+
+def _first(found: Sequence[dict[str, Any]], episodes: int) -> list[dict[str, Any]]:
+    """The records of episodes 0 .. ``episodes`` − 1, by index (a longer evaluation answers a shorter request)."""
+    by_index: dict[Any, dict[str, Any]] = {}
+    for record in found:
+        by_index.setdefault(record.get("index"), record)
+    return [by_index[i] for i in range(episodes) if i in by_index]
 
 
 def _chosen_methods(table: Table, names: Sequence[str] | None) -> tuple[Method, ...]:

@@ -127,7 +127,7 @@ def test_bad_task_is_one_error_line(capsys):
 
 def test_interrupted_evaluation_resumes_without_duplicates(tmp_path):
     """A JSONL cut short (with a truncated last line and a duplicate) is completed, not redone;
-    a file from another evaluation is started over."""
+    a file from another evaluation is refused and left as it is."""
     spec = EvalSpec("stage5", "mpc_goal", 4, 0, OVERRIDES, 1)
     evaluate(spec, tmp_path, progress=False)
     path = tmp_path / "stage5.jsonl"
@@ -145,8 +145,10 @@ def test_interrupted_evaluation_resumes_without_duplicates(tmp_path):
     assert [r["index"] for r in records] == [0, 1, 2, 3]
     assert [r["outcome"] for r in records] == [json.loads(x)["outcome"] for x in full]
     other = EvalSpec("stage5", "mpc_goal", 4, 0, (*OVERRIDES, "crowd.count=3"), 1)
-    evaluate(other, tmp_path, progress=False)
-    assert [json.loads(x)["overrides"][-1] for x in path.read_text().splitlines()] == ["crowd.count=3"] * 4
+    before = path.read_bytes()
+    with pytest.raises(EvalError, match="overrides.*out="):
+        evaluate(other, tmp_path, progress=False)
+    assert path.read_bytes() == before
 
 
 def test_planner_overrides_and_tuning_scenarios(tmp_path):
