@@ -32,13 +32,18 @@ from typing import Any
 
 import numpy as np
 
+from mjnav.eval.intervals import rate_with_interval
+from mjnav.eval.social import SOCIAL_COLUMNS
+
 __all__ = [
     "COLUMNS",
     "EpisodeMetrics",
     "aggregate",
     "episode_metrics",
     "format_markdown",
+    "rate_with_interval",
     "summary_row",
+    "wilson",
     "write_csv",
 ]
 
@@ -200,7 +205,8 @@ def aggregate(episodes: Sequence[EpisodeMetrics]) -> dict[str, float]:
         episodes: Per-episode metrics.
 
     Returns:
-        Dict with ``episodes``, ``success_rate``, ``collision_rate``, ``timeout_rate`` (fractions);
+        Dict with ``episodes``, ``success_rate``, ``collision_rate``, ``timeout_rate`` (fractions;
+        every rate ``X`` comes with its 95 % Wilson interval ``X_lo``, ``X_hi``);
         over successes: ``time_s``, ``distance_m``, ``speed`` (means), ``total_abs_acc`` (sum),
         ``abs_acc_per_episode``, ``jerk_rms`` (means); ``min_clearance_obstacles`` /
         ``min_clearance_pedestrians`` (minimum over all episodes) and their ``mean_*`` (mean of
@@ -213,11 +219,12 @@ def aggregate(episodes: Sequence[EpisodeMetrics]) -> dict[str, float]:
     obst_min, obst_mean = _clearance_stats(episodes, "min_clearance_obstacles")
     ped_min, ped_mean = _clearance_stats(episodes, "min_clearance_pedestrians")
     solve_median, solve_p99 = _solve_stats(episodes)
+    steps, scans = sum(e.steps for e in episodes), sum(e.scans for e in episodes)
     return {
         "episodes": float(n),
-        "success_rate": _ratio(count["success"], n),
-        "collision_rate": _ratio(count["collision"], n),
-        "timeout_rate": _ratio(count["timeout"], n),
+        **rate_with_interval("success_rate", count["success"], n),
+        **rate_with_interval("collision_rate", count["collision"], n),
+        **rate_with_interval("timeout_rate", count["timeout"], n),
         "time_s": _mean(e.time_s for e in wins),
         "distance_m": _mean(e.distance_m for e in wins),
         "speed": _mean(e.mean_speed for e in wins),
@@ -230,9 +237,8 @@ def aggregate(episodes: Sequence[EpisodeMetrics]) -> dict[str, float]:
         "mean_min_clearance_pedestrians": ped_mean,
         "solve_ms_median": solve_median,
         "solve_ms_p99": solve_p99,
-        "fallback_rate": _ratio(sum(e.fallbacks for e in episodes), sum(e.steps for e in episodes)),
-        "region_failure_rate": _ratio(sum(e.region_failures for e in episodes),
-                                      sum(e.scans for e in episodes)),
+        **rate_with_interval("fallback_rate", sum(e.fallbacks for e in episodes), steps),
+        **rate_with_interval("region_failure_rate", sum(e.region_failures for e in episodes), scans),
     }
 
 
@@ -272,10 +278,15 @@ def _cell(value: Any, fmt: str) -> str:
 
 
 def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
-    """A GitHub-markdown table of summary rows with the paper's columns."""
-    header = "| " + " | ".join(label for _, label, _ in COLUMNS) + " |"
-    rule = "|" + "|".join("---" for _ in COLUMNS) + "|"
-    body = ["| " + " | ".join(_cell(row.get(key), fmt) for key, _, fmt in COLUMNS) + " |" for row in rows]
+    """A GitHub-markdown table of summary rows with the paper's columns, and the social metrics'
+    (:data:`mjnav.eval.social.SOCIAL_COLUMNS`) before the episode count when a row has them."""
+
+    columns = COLUMNS
+    if any(row.get("social_episodes") for row in rows):
+        columns = (*COLUMNS[:-1], *SOCIAL_COLUMNS, COLUMNS[-1])
+    header = "| " + " | ".join(label for _, label, _ in columns) + " |"
+    rule = "|" + "|".join("---" for _ in columns) + "|"
+    body = ["| " + " | ".join(_cell(row.get(key), fmt) for key, _, fmt in columns) + " |" for row in rows]
     return "\n".join([header, rule, *body]) + "\n"
 
 

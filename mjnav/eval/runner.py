@@ -9,9 +9,15 @@ their own random stream, ``default_rng([seed, 1])``, so they cannot shift the sc
 
 Each worker process builds its environment and loads the policy once, then runs episodes by
 index. Results: one JSON line per episode (``<task>.jsonl``), ``summary.csv`` and
-``summary.md`` (one row per task) in the output folder. Episodes are appended to the JSONL as
-they finish, so an evaluation that is interrupted and started again with the same arguments runs
-only the missing episodes (never duplicates); at the end the file is rewritten sorted by index.
+``summary.md`` (one row per task) in the output folder; each record also carries the episode's
+social-navigation metrics and collision kind (:mod:`mjnav.eval.social`).
+
+A JSONL only grows. Episodes are appended as they finish, so an evaluation that is interrupted
+and started again with the same arguments runs only the missing episodes (never duplicates); at
+the end the file is rewritten sorted by index, every record kept, atomically (temporary file,
+fsync, ``os.replace``). A smaller ``episodes=`` summarises the first episodes and keeps the rest.
+A file holding another evaluation's episodes (other commit, overrides, policy version, seeds) is
+never deleted or rewritten: the evaluation stops with an :class:`EvalError` naming the difference.
 """
 
 from __future__ import annotations
@@ -19,10 +25,12 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import multiprocessing as mp
 import os
 import subprocess
 import sys
+import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -37,6 +45,7 @@ from mjnav.eval.metrics import (
     summary_row,
     write_csv,
 )
+from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
 from mjnav.schema import ConfigError
 
@@ -128,12 +137,14 @@ class EpisodeTrace:
         pedestrians: (T+1, P, 3) pedestrian circles ``[x, y, r]``.
         plans: Per control step, what the action layer decided (``position`` planned from,
             ``polygon``, ``q_s``, ``q_l``, ``predicted``); empty for baselines.
+        control_period: Time between two samples, seconds.
     """
 
     positions: np.ndarray
     velocities: np.ndarray
     pedestrians: np.ndarray
     plans: list[dict[str, np.ndarray]] = dataclasses.field(default_factory=list)
+    control_period: float = math.nan
 
 
 def git_commit(path: str | Path | None = None) -> str:
@@ -181,6 +192,7 @@ class _Recorder:
         # Under the contact rule, where the paper's rule would have ended the episode (see paper_rule)
         self.watch_scan = env.task.config.collision == "contact"
         self.scan_cut: dict[str, Any] | None = None
+        self.scan_kind: str | None = None  # what the shortest beam hit when the shrunk scan first reached 0
 
     def _planner_stats(self) -> dict[str, int]:
         return dict(getattr(getattr(self.agent.planner, "planner", None), "stats", {}) or {})
@@ -203,6 +215,8 @@ class _Recorder:
             self.solve.append(1e3 * record.solve_time_s)
             self.plans.append({"position": record.position.copy(), "polygon": record.polygon,
                                "q_s": record.q_s.copy(), "q_l": record.q_l.copy(), "predicted": record.predicted})
+        if self.scan_kind is None and self.task.core.min_scan <= 0.0 and len(self.positions) > 1:
+            self.scan_kind = self.task.scan_hit_kind(self.env.physics) or "unknown"
         if self.watch_scan and self.scan_cut is None and self.task.core.min_scan <= 0.0:
             self.scan_cut = self._snapshot()
 
@@ -210,8 +224,28 @@ class _Recorder:
         """Metrics, planner statistics and trace of the whole episode."""
         now = self._snapshot()
         metrics, stats = self._metrics(outcome, now["samples"], now["solve"], now["counters"], now["planner_stats"])
-        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans)
+        trace = EpisodeTrace(np.array(self.positions), np.array(self.velocities), _stack_peds(self.peds), self.plans,
+                             self.task.config.timing.control_period)
         return metrics, stats, trace
+
+    def collision_kind(self, outcome: str, rule: str) -> str | None:
+        """What a collision under ``rule`` hit (``pedestrian``, ``obstacle``, ``wall``; None without one).
+
+        The contact rule: the kind of the robot's deepest MuJoCo contact (:meth:`NavSim.robot_in_collision`);
+        the paper's rule: what the shortest beam hit (:meth:`CrowdNavTask.scan_hit_kind`), ``unknown``
+        when that beam, cast without noise, hits nothing (only the range noise made it short).
+        """
+        if outcome != "collision":
+            return None
+        return self.task.contact_kind if rule == "contact" else self.scan_kind
+
+    def social(self, outcome: str, samples: int | None = None) -> dict[str, Any]:
+        """Social metrics (:func:`mjnav.eval.social.social_metrics`) of the first ``samples`` instants."""
+        layout = self.task.layout
+        return social_metrics(np.array(self.positions[:samples]), np.array(self.velocities[:samples]),
+                              _stack_peds(self.peds[:samples]), self.task.config.timing.control_period,
+                              self.radius, layout.start, layout.goal, outcome,
+                              self.task.config.reward.goal_tolerance).to_dict()
 
     def paper_rule(self, outcome: str) -> dict[str, Any] | None:
         """This contact-rule episode's outcome and metrics under the paper's rule (``collision=scan``).
@@ -226,7 +260,9 @@ class _Recorder:
         cut = self.scan_cut or self._snapshot()
         metrics, stats = self._metrics("collision" if self.scan_cut else outcome, cut["samples"], cut["solve"],
                                        cut["counters"], cut["planner_stats"])
-        return {"outcome": metrics.outcome, "metrics": metrics.to_dict(), "planner_stats": stats}
+        return {"outcome": metrics.outcome, "metrics": metrics.to_dict(), "planner_stats": stats,
+                "collision_kind": self.collision_kind(metrics.outcome, "scan"),
+                "social": self.social(metrics.outcome, cut["samples"])}
 
     def _metrics(self, outcome: str, samples: int, solves: int, counters: dict[str, int],
                  planner_stats: dict[str, int]) -> tuple[EpisodeMetrics, dict[str, int]]:
@@ -287,8 +323,9 @@ def run_episode(
         seed: Episode seed.
 
     Returns:
-        (metrics, extras with ``planner_stats``, ``start``, ``goal`` and, under the contact rule,
-        ``paper_rule`` (:meth:`_Recorder.paper_rule`), trace).
+        (metrics, extras with ``planner_stats``, ``start``, ``goal``, ``collision_kind``, ``social``
+        (:mod:`mjnav.eval.social`) and, under the contact rule, ``paper_rule``
+        (:meth:`_Recorder.paper_rule`), trace).
     """
     base = env.unwrapped  # wrappers (TimeLimit, RecordEpisodeStatistics, ...) do not forward task/physics
     agent.begin(base.task, seed)
@@ -303,7 +340,9 @@ def run_episode(
         done = terminated or truncated
     metrics, stats, trace = rec.finish(info["outcome"])
     layout = base.task.layout
-    extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist()}
+    extras = {"planner_stats": stats, "start": layout.start.tolist(), "goal": layout.goal.tolist(),
+              "collision_kind": rec.collision_kind(metrics.outcome, base.task.config.collision),
+              "social": rec.social(metrics.outcome)}
     if rec.watch_scan:
         extras["paper_rule"] = rec.paper_rule(info["outcome"])
     return metrics, extras, trace
@@ -404,8 +443,13 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         progress: Show a progress bar (tqdm) or a plain counter on stderr.
 
     Returns:
-        The summary row (:func:`mjnav.eval.metrics.summary_row` plus ``task_version``,
-        ``commit``, ``seed_offset``).
+        The summary row (:func:`mjnav.eval.metrics.summary_row`, the social metrics'
+        :func:`mjnav.eval.social.aggregate_social`, ``task_version``, ``commit``, ``seed_offset``) of
+        episodes 0 .. ``spec.episodes`` − 1.
+
+    Raises:
+        EvalError: ``<task>.jsonl`` in ``out_dir`` holds another evaluation's episodes (nothing is
+            changed; :func:`_resumable`).
     """
     common = _common(spec)
     task, policy_name, commit = common["task"], common["policy"], common["commit"]
@@ -421,12 +465,10 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
     rows = [*done.values(), *(stream if path is None else _append(path, common, stream))]
     rows.sort(key=lambda r: r["index"])
     if path is not None:
-        partial = path.with_name(path.name + ".partial")
-        partial.write_text("".join(json.dumps({**common, **_episode(r)}) + "\n" for r in rows), encoding="utf-8")
-        os.replace(partial, path)  # sorted by index, written atomically
+        _rewrite_sorted(path)
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
-    return {**summary_row(summary, task, policy_name), "task_version": common["task_version"],
-            "commit": commit, "seed_offset": spec.seed_offset}
+    return {**summary_row(summary, task, policy_name), **aggregate_social(rows),
+            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset}
 
 
 def _common(spec: EvalSpec) -> dict[str, Any]:
@@ -470,9 +512,7 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
             derived.append({**common, "index": index, "seed": record["seed"], **paper, "start": record.get("start"),
                             "goal": record.get("goal"), "derived_from": "contact"})
     if derived:
-        path = Path(out_dir) / f"{common['task']}.jsonl"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "a", encoding="utf-8") as f:
+        with _open_for_append(Path(out_dir) / f"{common['task']}.jsonl") as f:
             f.writelines(json.dumps(r) + "\n" for r in derived)
     return len(derived)
 
@@ -481,12 +521,14 @@ def settle_from_contact(spec: EvalSpec, contact: str | Path, out_dir: str | Path
     """Write the episodes of paper's-rule ``spec`` that a contact run settles (:func:`seed_paper_rule`).
 
     ``contact`` is the contact run's JSONL, or its folder (then ``<contact>/<task>.jsonl``). The
-    output file is first brought to what :func:`evaluate` would resume from (records of another
-    evaluation dropped), so settling twice, or into an interrupted run, never duplicates or mixes.
-    Contact records of another commit, policy, seed range or overrides settle nothing (0, reported).
+    output file must hold episodes of ``spec`` only (as :func:`evaluate` resumes them); an index
+    settled twice keeps its first record when :func:`evaluate` rewrites the file, so settling
+    twice, or into an interrupted run, never duplicates or mixes. Contact records of another
+    commit, policy, seed range or overrides settle nothing (0, reported).
 
     Raises:
-        EvalError: ``spec`` is not evaluated under the paper's rule (``collision=scan``).
+        EvalError: ``spec`` is not evaluated under the paper's rule (``collision=scan``), or the output
+            file holds another evaluation's episodes (left unchanged).
     """
     common = _common(spec)
     if common["collision"] != "scan":
@@ -535,8 +577,7 @@ def _append(path: Path, common: dict[str, Any], stream: Iterator[dict[str, Any]]
     try:
         for row in stream:
             if f is None:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                f = open(path, "a", encoding="utf-8")  # noqa: SIM115 - closed below
+                f = _open_for_append(path)
             f.write(json.dumps({**common, **row}) + "\n")
             f.flush()
             yield row
@@ -545,9 +586,58 @@ def _append(path: Path, common: dict[str, Any], stream: Iterator[dict[str, Any]]
             f.close()
 
 
-def _episode(record: dict[str, Any]) -> dict[str, Any]:
-    """The per-episode part of a JSONL record."""
-    return {k: v for k, v in record.items() if k not in _COMMON_KEYS}
+def _open_for_append(path: Path):  # noqa: ANN202 - a text file object
+    """``path`` opened for appending lines (folder made); a last line cut by a kill is ended first,
+    so it stays one unreadable line (skipped by :func:`read_jsonl`) instead of swallowing the next."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    f = open(path, "a+b")  # noqa: SIM115 - the caller closes it
+    if f.tell() > 0:
+        f.seek(-1, os.SEEK_END)
+        if f.read(1) != b"\n":
+            f.write(b"\n")
+    f.close()
+    return open(path, "a", encoding="utf-8")  # noqa: SIM115
+
+
+def _rewrite_sorted(path: Path) -> None:
+    """Rewrite ``path`` with its records sorted by index, one per index (the first), atomically.
+
+    Every record of the file is kept (indices past this run's episode count too); lines cut by a kill
+    are dropped. The new content goes to a temporary file in the same folder, is flushed to disk
+    (fsync), then replaces ``path`` in one ``os.replace``: a kill at any moment leaves the old file
+    or the new one, never a truncated one.
+    """
+    if not path.is_file():
+        return
+    unique: dict[int, dict[str, Any]] = {}
+    for record in read_jsonl(path):
+        unique.setdefault(record["index"], record)
+    text = "".join(json.dumps(unique[i]) + "\n" for i in sorted(unique))
+    if path.read_text(encoding="utf-8") == text:
+        return
+    _atomic_write(path, text)
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file, fsync and ``os.replace`` (then fsync the folder)."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    try:
+        folder = os.open(path.parent, os.O_RDONLY)
+    except OSError:  # a platform without directory handles
+        return
+    try:
+        os.fsync(folder)
+    finally:
+        os.close(folder)
 
 
 def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
@@ -569,28 +659,42 @@ def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
 
 
 def _resumable(path: Path, common: dict[str, Any], spec: EvalSpec) -> dict[int, dict[str, Any]]:
-    """Episodes of an earlier, interrupted run of the same evaluation in ``path``, by index.
+    """Episodes 0 .. ``spec.episodes`` − 1 of an earlier run of the same evaluation in ``path``, by index.
 
     A record counts when its task, policy (path and file hash), code commit, overrides, action mode
-    and seed match this evaluation (uncommitted code changes are not detected: delete the file, or
-    use another ``out``, after changing code); duplicates keep the first, a truncated last line (a
-    kill mid-write) is dropped. If any record belongs to another evaluation the file is started
-    over (returns {}). The file is rewritten with the kept records so the appends that follow
-    never duplicate an index.
+    and seed match this evaluation (uncommitted code changes are not detected: use another ``out``
+    after changing code); duplicates keep the first, a line cut by a kill is skipped. Records past
+    the episode count stay in the file (a smaller ``episodes=`` summarises the first ones). The file
+    is only read: it only ever grows (:func:`_append`) and is rewritten sorted, atomically, with
+    every record kept (:func:`_rewrite_sorted`).
+
+    Raises:
+        EvalError: A record belongs to another evaluation; the message names the fields that differ.
+            Nothing is deleted or changed.
     """
-    if not path.is_file():
-        return {}
     kept: dict[int, dict[str, Any]] = {}
     for record in read_jsonl(path):  # a line cut by a kill is skipped
         index = record.get("index")
-        same = all(record.get(k) == common[k] for k in _SPEC_KEYS)
-        if not same or not isinstance(index, int) or record.get("seed") != held_out_seed(index, spec.seed_offset):
-            path.unlink()
-            return {}
+        differ = _differences(record, common, spec)
+        if differ:
+            raise EvalError(f"{path} holds episodes of another evaluation ({'; '.join(differ)}); it is left "
+                            f"as it is: write this evaluation elsewhere with out=DIR, or move that file away")
         if index < spec.episodes:
-            kept.setdefault(index, _episode(record))
-    path.write_text("".join(json.dumps({**common, **r}) + "\n" for r in kept.values()), encoding="utf-8")
+            kept.setdefault(index, record)
     return kept
+
+
+def _differences(record: dict[str, Any], common: dict[str, Any], spec: EvalSpec) -> list[str]:
+    """``field: file's value vs this evaluation's`` for each field that makes ``record`` another evaluation's."""
+    out = [f"{k}: {record.get(k)!r} there, {common[k]!r} here" for k in _SPEC_KEYS if record.get(k) != common[k]]
+    index = record.get("index")
+    if not isinstance(index, int) or index < 0:
+        out.append(f"index: {index!r} is not an episode index")
+    elif record.get("seed") != held_out_seed(index, spec.seed_offset):
+        seed = record.get("seed")
+        there = seed - HELD_OUT_BASE - index if isinstance(seed, int) else f"seed {seed!r}"
+        out.append(f"seed_offset: {there} there, {spec.seed_offset} here")
+    return out
 
 
 def evaluate_tasks(

@@ -13,9 +13,11 @@ A method whose policy file does not exist is listed as "not trained", never esti
 ``*.pt``; ``action=sample`` samples its Gaussian through the shipped ``*_checkpoint.pt``.
 
 Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
-a policy shared by two tables is evaluated once). A file whose episode count, seed offset, policy
-or action mode differs from the request, or whose policy file (a baseline: its parameters,
-:func:`mjnav.eval.runner.policy_sha256`) has changed since, is evaluated again. The contact rule is run first: its
+a policy shared by two tables is evaluated once). A file with more episodes than requested answers
+with its first ones. A file with fewer, or whose seed offset, policy or action mode differs from the
+request, or whose policy file (a baseline: its parameters, :func:`mjnav.eval.runner.policy_sha256`)
+has changed since, is evaluated again; records of another evaluation are kept, renamed
+``<stage>_<rule>.<commit>-<sha>.jsonl``, never deleted. The contact rule is run first: its
 episodes carry their outcome under the paper's rule wherever they determine it
 (:func:`mjnav.eval.runner.settle_from_contact`), so the paper's-rule run only plays the rest.
 """
@@ -24,13 +26,17 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import math
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from mjnav.eval.intervals import wilson
+from mjnav.eval.social import aggregate_social
 from mjnav.eval.runner import read_jsonl as load_rows
 
-__all__ = ["TABLES", "Method", "Table", "format_strata", "format_table", "load_rows", "success_by_distance",
+__all__ = ["TABLES", "Method", "Table", "format_social", "format_strata", "format_table", "load_rows",
+           "success_by_distance",
            "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
@@ -106,16 +112,6 @@ TABLES: dict[int, Table] = {
 }
 
 
-def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
-    """95 % Wilson score interval of a rate (fractions); (nan, nan) for n = 0."""
-    if n <= 0:
-        return math.nan, math.nan
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
 def success_by_distance(rows: Sequence[dict[str, Any]], edges: Sequence[float] = (0.0, 2.0, 4.0, 6.0, 8.0)
                         ) -> list[dict[str, Any]]:
     """Success rate by straight start-goal distance: how a method's result depends on the trip.
@@ -174,6 +170,7 @@ def _stats(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     for key, name in (("time_s", "time"), ("distance_m", "distance"), ("mean_speed", "speed")):
         out[name] = sum(r["metrics"][key] for r in wins) / len(wins) if wins else math.nan
     out["abs_acc"] = sum(r["metrics"].get("abs_acc_sum", math.nan) for r in wins)  # the paper's sum over successes
+    out["social"] = aggregate_social(rows)
     return out
 
 
@@ -215,7 +212,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                 continue
             for rule in ("contact", "scan"):  # the contact run settles most episodes of the paper's rule
                 path = evaluation_path(out, method, stage, rule, mode)
-                found = load_rows(path)
+                found = _first(load_rows(path), episodes)
                 if not _matches(found, episodes, seed_offset, policy, mode):
                     if not run_missing:  # an unfinished run (resumable) shows as what it has so far
                         partial = _prefix(load_rows(path.parent / f"{stage}.jsonl"), rule, seed_offset, policy, mode,
@@ -229,11 +226,32 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
                         contact = evaluation_path(out, method, stage, "contact", mode)
                         settle_from_contact(spec, contact, path.parent)
                     evaluate(spec, path.parent, progress=True)
-                    path.parent.joinpath(f"{stage}.jsonl").replace(path)
-                    found = load_rows(path)
+                    _replace_keeping(path.parent / f"{stage}.jsonl", path)
+                    found = _first(load_rows(path), episodes)
                 row[rule] = _stats(found)
             rows.append({**row, "status": "ok"})
     return rows
+
+
+def _replace_keeping(new: Path, path: Path) -> None:
+    """Move the evaluation ``new`` to ``path``; records already at ``path`` from another evaluation (other
+    policy version, commit, seeds or overrides) are first moved aside to ``<stem>.<commit>-<sha>.jsonl``."""
+    from mjnav.eval.runner import _SPEC_KEYS
+
+    old, now = load_rows(path)[:1], load_rows(new)[:1]
+    if old and now and any(old[0].get(k) != now[0].get(k) for k in (*_SPEC_KEYS, "seed")):
+        aside = f"{str(old[0].get('commit'))[:8]}-{old[0].get('policy_sha256')}"
+        path.replace(path.with_name(f"{path.stem}.{aside}.jsonl"))
+        print(f"kept the earlier evaluation {path} as {path.stem}.{aside}.jsonl", file=sys.stderr)
+    new.replace(path)
+
+
+def _first(found: Sequence[dict[str, Any]], episodes: int) -> list[dict[str, Any]]:
+    """The records of episodes 0 .. ``episodes`` − 1, by index (a longer evaluation answers a shorter request)."""
+    by_index: dict[Any, dict[str, Any]] = {}
+    for record in found:
+        by_index.setdefault(record.get("index"), record)
+    return [by_index[i] for i in range(episodes) if i in by_index]
 
 
 def _chosen_methods(table: Table, names: Sequence[str] | None) -> tuple[Method, ...]:
@@ -298,10 +316,55 @@ def _paper(values: tuple[float, ...]) -> str:
     return text
 
 
-def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False) -> str:
+def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False, social: bool = False) -> str:
     """Markdown: stage, method, paper, ours under both rules (success with CI, collisions), time/distance/speed
     (and, with ``abs_acc``, the paper's Total Abs Acc) over the successes under the paper's rule, action mode,
-    episodes."""
+    episodes; with ``social``, then a second table of the social metrics (:func:`format_social`)."""
+    if social:
+        return _format_paper(rows, abs_acc) + "\n" + format_social(rows)
+    return _format_paper(rows, abs_acc)
+
+
+#: Social columns of :func:`format_social`: (summary key, label, rate with a Wilson interval or number format).
+_SOCIAL_TABLE = (
+    ("mean_min_ped_distance_m", "min gap to a pedestrian m", "{:.3f}"),
+    ("intrusion_share", "intrusion % steps [95 % CI]", "rate"),
+    ("personal_share", "personal space % steps [95 % CI]", "rate"),
+    ("social_share", "social zone % steps [95 % CI]", "rate"),
+    ("near_misses_per_episode", "near misses / ep.", "{:.2f}"),
+    ("mean_min_ttc_s", "min TTC s", "{:.2f}"),
+    ("path_efficiency", "path efficiency", "{:.3f}"),
+    ("spl", "SPL", "{:.3f}"),
+    ("stopped_time_s", "stopped s", "{:.2f}"),
+    ("collision_pedestrian_rate", "collisions with pedestrians % [95 % CI]", "rate"),
+    ("collision_obstacle_rate", "with obstacles % [95 % CI]", "rate"),
+    ("collision_wall_rate", "with walls % [95 % CI]", "rate"),
+)
+
+
+def format_social(rows: Sequence[dict[str, Any]]) -> str:
+    """Markdown: the social metrics (:mod:`mjnav.eval.social`) of each row under the paper's rule (– where
+    the records predate them); thresholds as in :data:`mjnav.eval.social.THRESHOLDS`."""
+    lines = ["| stage | method | " + " | ".join(label for _, label, _ in _SOCIAL_TABLE) + " |",
+             "|" + "---|" * (2 + len(_SOCIAL_TABLE))]
+    for row in rows:
+        summary = ((row.get("scan") or {}).get("social") or {}) if row["status"] == "ok" else {}
+        cells = [_social_cell(summary, key, fmt) for key, _, fmt in _SOCIAL_TABLE]
+        lines.append(f"| {row['stage']} | {row['method']} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _social_cell(summary: dict[str, float], key: str, fmt: str) -> str:
+    value = summary.get(key, math.nan)
+    if value is None or math.isnan(value):
+        return "–"
+    if fmt == "rate":
+        return f"{100 * value:.1f} [{100 * summary[key + '_lo']:.1f}, {100 * summary[key + '_hi']:.1f}]"
+    return fmt.format(value)
+
+
+def _format_paper(rows: Sequence[dict[str, Any]], abs_acc: bool) -> str:
+    """The paper's columns of :func:`format_table`."""
     extra = ["time s", "distance m", "speed m/s"] + (["Total Abs Acc"] if abs_acc else [])
     paper = "paper success % (time, distance, speed" + (", Total Abs Acc)" if abs_acc else ")")
     head = (f"| stage | method | {paper} | success %, paper's rule [95 % CI] | collision %, paper's rule "

@@ -17,6 +17,7 @@ from dm_control import composer
 from dm_control.composer.observation import observable
 from dm_env import specs
 
+from mjnav.geometry.raycast import beam_angles, cast_rays
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
 from mjnav.tasks.privileged import CrowdTracker, critic_size, pedestrian_features
@@ -145,6 +146,25 @@ class CrowdNavTask(composer.Task):
         velocities = self._tracker.update(float(physics.data.time), circles[:, :2])
         rotation = self.core.frame_rotation(position)
         self._critic[:] = pedestrian_features(position, circles, velocities, count, rotation)
+
+    def scan_hit_kind(self, physics) -> str | None:
+        """What the shortest beam of the last scan hit: ``wall``, ``obstacle``, ``pedestrian`` or None.
+
+        The kind of a collision under the paper's rule (``collision=scan``: shrunk scan <= 0). That
+        beam is cast again from the robot centre, exactly and without noise, against the walls, the
+        obstacle edges and the pedestrians; the nearest hit names the kind (None when the beam hits
+        nothing in range: only noise made it short). Reads the state only (no random draw).
+        """
+        if self._scan is None:
+            return None
+        angle = beam_angles(len(self._scan))[int(np.argmin(self._scan))]
+        origin, _, _ = self.sim.robot_state(physics)
+        segments, walls, reach = self.sim.segments, 4, self.config.lidar.max_range  # wall_segments: 4 faces first
+        ranges = [cast_rays(origin, np.array([angle]), segments[:walls], None, reach)[0],
+                  cast_rays(origin, np.array([angle]), segments[walls:], None, reach)[0],
+                  cast_rays(origin, np.array([angle]), None, self.sim.pedestrian_circles(), reach)[0]]
+        nearest = int(np.argmin(ranges))
+        return ("wall", "obstacle", "pedestrian")[nearest] if ranges[nearest] < reach else None
 
     # ------------------------------------------------------------------ scoring
     @property

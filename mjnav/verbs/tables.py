@@ -31,6 +31,7 @@ class TablesOptions:
         run: Run the missing evaluations (false: report them as missing).
         action: ``mean``, ``expected`` or ``sample`` (how a learned policy acts).
         methods: Comma-separated methods to keep (names as the table prints them); empty: all.
+        social: Add a table of the social-navigation metrics (:mod:`mjnav.eval.social`).
     """
 
     table: int = 2
@@ -41,6 +42,7 @@ class TablesOptions:
     run: bool = True
     action: str = "mean"
     methods: str = ""
+    social: bool = False
 
 
 def grammar() -> Grammar:
@@ -51,6 +53,7 @@ def grammar() -> Grammar:
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Build the table and print it; returns the exit code."""
     from mjnav.eval.policies import ACTION_MODES
+    from mjnav.eval.runner import EvalError
     from mjnav.eval.tables import TABLES, format_table, table_rows
 
     opts: TablesOptions = parsed.options
@@ -63,8 +66,8 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         workers = os.cpu_count() or 1 if opts.workers is None else opts.workers
         rows = table_rows(opts.table, Path(opts.out), opts.episodes, opts.seed_offset, workers, opts.run,
                           opts.action, names)
-    except (ConfigError, ValueError, FileNotFoundError) as err:
+    except (ConfigError, ValueError, FileNotFoundError, EvalError) as err:  # EvalError: a file of another evaluation
         print(f"error: {err}", file=sys.stderr)
         return 2
-    print(format_table(rows, TABLES[opts.table].abs_acc), end="")
+    print(format_table(rows, TABLES[opts.table].abs_acc, opts.social), end="")
     return 0

@@ -127,7 +127,7 @@ def test_bad_task_is_one_error_line(capsys):
 
 def test_interrupted_evaluation_resumes_without_duplicates(tmp_path):
     """A JSONL cut short (with a truncated last line and a duplicate) is completed, not redone;
-    a file from another evaluation is started over."""
+    a file from another evaluation is refused and left as it is."""
     spec = EvalSpec("stage5", "mpc_goal", 4, 0, OVERRIDES, 1)
     evaluate(spec, tmp_path, progress=False)
     path = tmp_path / "stage5.jsonl"
@@ -145,8 +145,10 @@ def test_interrupted_evaluation_resumes_without_duplicates(tmp_path):
     assert [r["index"] for r in records] == [0, 1, 2, 3]
     assert [r["outcome"] for r in records] == [json.loads(x)["outcome"] for x in full]
     other = EvalSpec("stage5", "mpc_goal", 4, 0, (*OVERRIDES, "crowd.count=3"), 1)
-    evaluate(other, tmp_path, progress=False)
-    assert [json.loads(x)["overrides"][-1] for x in path.read_text().splitlines()] == ["crowd.count=3"] * 4
+    before = path.read_bytes()
+    with pytest.raises(EvalError, match="overrides.*out="):
+        evaluate(other, tmp_path, progress=False)
+    assert path.read_bytes() == before
 
 
 def test_planner_overrides_and_tuning_scenarios(tmp_path):
@@ -215,6 +217,9 @@ def test_contact_run_settles_the_paper_rule_exactly(tmp_path, policy):
         mine, theirs = dict(r["metrics"]), dict(direct[r["index"]]["metrics"])
         assert len(mine.pop("solve_times_ms")) == len(theirs.pop("solve_times_ms"))
         assert (r["outcome"], mine) == (direct[r["index"]]["outcome"], theirs)
+        same = ("collision_kind", "social")  # what was hit (shortest beam's object) and the social metrics too
+        assert [r[k] for k in same] == [direct[r["index"]][k] for k in same]
+        assert (r["collision_kind"] is not None) == (r["outcome"] == "collision")
     calls = []
     original = runner._results
     try:

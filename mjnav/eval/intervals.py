@@ -1,0 +1,24 @@
+"""Rates and their 95 % Wilson score intervals, shared by the metrics, the social metrics and the
+tables (the bottom of :mod:`mjnav.eval`: it imports nothing from mjnav)."""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["rate_with_interval", "wilson"]
+
+
+def wilson(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """95 % Wilson score interval of a rate (fractions); (nan, nan) for n = 0."""
+    if n <= 0:
+        return math.nan, math.nan
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def rate_with_interval(name: str, hits: int, n: int) -> dict[str, float]:
+    """``{name: hits / n, name_lo, name_hi}``: a rate and its 95 % Wilson interval (NaN for n = 0)."""
+    lo, hi = wilson(hits, n)
+    return {name: hits / n if n > 0 else math.nan, f"{name}_lo": lo, f"{name}_hi": hi}
