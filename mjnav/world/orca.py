@@ -96,18 +96,13 @@ class OrcaConfig:
     robot_as: Literal["agent", "obstacle"] = "agent"
 
     def __post_init__(self) -> None:
-        positive = {"neighbor_dist": self.neighbor_dist, "time_horizon": self.time_horizon,
-                    "time_horizon_obst": self.time_horizon_obst, "goal_tolerance": self.goal_tolerance}  # fmt: skip
-        for name, value in positive.items():
-            _require(isinstance(value, (int, float)) and math.isfinite(value) and value > 0, name,
-                     f"must be finite and > 0, got {value!r}")  # fmt: skip
-        _require(isinstance(self.max_neighbors, (int, np.integer)) and not isinstance(self.max_neighbors, bool)
-                 and self.max_neighbors >= 0, "max_neighbors", f"must be an integer >= 0, got {self.max_neighbors!r}")  # fmt: skip
-        margin, factor = self.safety_margin, self.max_speed_factor
-        _require(isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0, "safety_margin",
-                 f"must be finite and >= 0, got {margin!r}")  # fmt: skip
-        _require(isinstance(factor, (int, float)) and math.isfinite(factor) and factor >= 1, "max_speed_factor",
-                 f"must be finite and >= 1, got {factor!r}")  # fmt: skip
+        for name in ("neighbor_dist", "time_horizon", "time_horizon_obst", "goal_tolerance"):
+            _require_number(name, getattr(self, name), 0.0, strict=True)
+        _require_number("safety_margin", self.safety_margin, 0.0, strict=False)
+        _require_number("max_speed_factor", self.max_speed_factor, 1.0, strict=False)
+        count = self.max_neighbors
+        integer = isinstance(count, (int, np.integer)) and not isinstance(count, bool)
+        _require(integer and count >= 0, "max_neighbors", f"must be an integer >= 0, got {count!r}")
         _require(isinstance(self.reactive, bool), "reactive", f"must be true or false, got {self.reactive!r}")
         _require(self.robot_as in ROBOT_RESPONSIBILITY, "robot_as",
                  f"must be one of {sorted(ROBOT_RESPONSIBILITY)}, got {self.robot_as!r}")  # fmt: skip
@@ -122,6 +117,13 @@ def _require(cond: bool, name: str, msg: str) -> None:
     """Raises ``ValueError("orca.<name>: <msg>")`` unless ``cond``."""
     if not cond:
         raise ValueError(f"orca.{name}: {msg}")
+
+
+def _require_number(name: str, value: object, low: float, strict: bool) -> None:
+    """Raises unless ``value`` is a finite real number above ``low`` (or equal, unless ``strict``)."""
+    real = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
+    ok = real and math.isfinite(value) and (value > low if strict else value >= low)
+    _require(ok, name, f"must be a finite number {'>' if strict else '>='} {low}, got {value!r}")
 
 
 class OrcaObstacles(NamedTuple):
@@ -338,12 +340,13 @@ def _orca_velocities(
         n_agents = _agent_neighbors(pos, i, has_robot, robot_pos, neighbor_dist, max_neighbors, agent_idx, agent_d2)
         for m in range(n_agents):
             j = agent_idx[m]
-            if j == n:
-                ox, oy, ovx, ovy, orr, resp = robot_pos[0], robot_pos[1], robot_vel[0], robot_vel[1], robot_radius, robot_resp
+            px, py, vx, vy, r = pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i]
+            if j == n:  # the robot
+                _agent_line(px, py, vx, vy, r, robot_pos[0], robot_pos[1], robot_vel[0], robot_vel[1],
+                            robot_radius, robot_resp, 1.0, tau, dt, lines, count)  # fmt: skip
             else:
-                ox, oy, ovx, ovy, orr, resp = pos[j, 0], pos[j, 1], vel[j, 0], vel[j, 1], radius[j], RECIPROCAL
-            _agent_line(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i], ox, oy, ovx, ovy, orr, resp,
-                        1.0 if i < j else -1.0, tau, dt, lines, count)  # fmt: skip
+                _agent_line(px, py, vx, vy, r, pos[j, 0], pos[j, 1], vel[j, 0], vel[j, 1],
+                            radius[j], RECIPROCAL, 1.0 if i < j else -1.0, tau, dt, lines, count)  # fmt: skip
             count += 1
         fail, rx, ry = _linear_program2(lines, count, vmax[i], pref[i, 0], pref[i, 1], False)
         if fail < count:
@@ -701,33 +704,70 @@ def _linear_program3(
 # ---------------------------------------------------------------------------- model step
 
 
-@numba.njit(cache=True)
-def _orca_model_step(
-    pos: np.ndarray, vel: np.ndarray, goal: np.ndarray, v0: np.ndarray, radius: np.ndarray,
-    orca_radius: np.ndarray, vmax: np.ndarray, time_left: np.ndarray, redraw: np.ndarray, dt: float,
-    xmin: float, ymin: float, xmax: float, ymax: float, verts: np.ndarray, offsets: np.ndarray,
-    ob_point: np.ndarray, ob_dir: np.ndarray, ob_next: np.ndarray, ob_prev: np.ndarray, ob_convex: np.ndarray,
-    params: np.ndarray, max_neighbors: int, has_robot: bool, robot_pos: np.ndarray, robot_vel: np.ndarray,
-    robot_radius: float, robot_resp: float, goal_tolerance: float,
-    lines: np.ndarray, proj: np.ndarray, agent_idx: np.ndarray, agent_d2: np.ndarray,
-    obst_idx: np.ndarray, obst_d2: np.ndarray, pref: np.ndarray, new_vel: np.ndarray, counters: np.ndarray,
-) -> None:  # fmt: skip
-    """One ORCA step in place: preferred velocities, ORCA, move, guard, goal bookkeeping.
+#: Layout of the float parameter vector of :func:`_orca_advance`.
+_P_NEIGHBOR_DIST, _P_TAU, _P_TAU_OBST, _P_GOAL_TOL, _P_MARGIN, _P_ROBOT_RADIUS, _P_ROBOT_RESP = range(7)
+_P_BOX = 7  # xmin, ymin, xmax, ymax follow
 
-    ``params`` = (neighbor_dist, time_horizon, time_horizon_obst). ``counters`` gets += (guard
-    corrections, overlapping pedestrian pairs after the step).
+
+@numba.njit(cache=True)
+def _orca_advance(
+    pos: np.ndarray, vel: np.ndarray, goal: np.ndarray, v0: np.ndarray, radius: np.ndarray, vmax: np.ndarray,
+    time_left: np.ndarray, redraw: np.ndarray, verts: np.ndarray, offsets: np.ndarray,
+    ob_point: np.ndarray, ob_dir: np.ndarray, ob_next: np.ndarray, ob_prev: np.ndarray, ob_convex: np.ndarray,
+    params: np.ndarray, max_neighbors: int, dt: float, robot_path: np.ndarray, robot_memory: np.ndarray,
+    track: np.ndarray, start: int, counters: np.ndarray,
+) -> int:  # fmt: skip
+    """ORCA steps ``start, start + 1, ...`` in place, positions into ``track``; stops after a step
+    that flags a goal redraw in ``redraw`` (the caller draws, then resumes) or at ``len(track)``.
+
+    Per step: preferred velocities, ORCA velocities of all pedestrians from the same state, move,
+    guard, goal bookkeeping. ``robot_path`` (len(track), 2) holds the robot centre at the start of
+    each step, or has no rows (no robot). ``robot_memory`` = (known, x, y): the robot centre of the
+    previous step, from which its velocity is taken (zero when unknown). ``counters`` gets +=
+    (guard corrections, overlapping pedestrian pairs after a step). Returns the next step index.
     """
     n = pos.shape[0]
-    for i in range(n):
-        gx, gy = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1]
-        d = math.hypot(gx, gy)
-        scale = v0[i] / d if d > 1e-12 else 0.0
-        pref[i, 0], pref[i, 1] = scale * gx, scale * gy
-    _orca_velocities(
-        pos, vel, orca_radius, pref, vmax, ob_point, ob_dir, ob_next, ob_prev, ob_convex, params[0], max_neighbors,
-        params[1], params[2], dt, has_robot, robot_pos, robot_vel, robot_radius, robot_resp,
-        lines, proj, agent_idx, agent_d2, obst_idx, obst_d2, new_vel,
-    )  # fmt: skip
+    orca_radius = radius + params[_P_MARGIN]
+    lines = np.empty((ob_point.shape[0] + max_neighbors + 1, 4))
+    proj = np.empty_like(lines)
+    agent_idx, agent_d2 = np.empty(max_neighbors + 1, dtype=np.int64), np.empty(max_neighbors + 1)
+    obst_idx, obst_d2 = np.empty(ob_point.shape[0], dtype=np.int64), np.empty(ob_point.shape[0])
+    pref, new_vel, robot_vel = np.empty((n, 2)), np.empty((n, 2)), np.zeros(2)
+    has_robot = robot_path.shape[0] > 0
+    xmin, ymin, xmax, ymax = params[_P_BOX], params[_P_BOX + 1], params[_P_BOX + 2], params[_P_BOX + 3]
+    for k in range(start, track.shape[0]):
+        if has_robot:
+            robot_vel[0] = (robot_path[k, 0] - robot_memory[1]) / dt if robot_memory[0] else 0.0
+            robot_vel[1] = (robot_path[k, 1] - robot_memory[2]) / dt if robot_memory[0] else 0.0
+            robot_memory[0], robot_memory[1], robot_memory[2] = 1.0, robot_path[k, 0], robot_path[k, 1]
+        for i in range(n):
+            gx, gy = goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1]
+            d = math.hypot(gx, gy)
+            scale = v0[i] / d if d > 1e-12 else 0.0
+            pref[i, 0], pref[i, 1] = scale * gx, scale * gy
+        _orca_velocities(
+            pos, vel, orca_radius, pref, vmax, ob_point, ob_dir, ob_next, ob_prev, ob_convex,
+            params[_P_NEIGHBOR_DIST], max_neighbors, params[_P_TAU], params[_P_TAU_OBST], dt, has_robot,
+            robot_path[k] if has_robot else robot_vel, robot_vel, params[_P_ROBOT_RADIUS], params[_P_ROBOT_RESP],
+            lines, proj, agent_idx, agent_d2, obst_idx, obst_d2, new_vel,
+        )  # fmt: skip
+        flagged = _move_and_check(pos, vel, new_vel, goal, radius, time_left, redraw, dt, xmin, ymin, xmax, ymax,
+                                  verts, offsets, params[_P_GOAL_TOL], counters)  # fmt: skip
+        track[k] = pos
+        if flagged:
+            return k + 1
+    return track.shape[0]
+
+
+@numba.njit(cache=True)
+def _move_and_check(
+    pos: np.ndarray, vel: np.ndarray, new_vel: np.ndarray, goal: np.ndarray, radius: np.ndarray,
+    time_left: np.ndarray, redraw: np.ndarray, dt: float, xmin: float, ymin: float, xmax: float, ymax: float,
+    verts: np.ndarray, offsets: np.ndarray, goal_tolerance: float, counters: np.ndarray,
+) -> bool:  # fmt: skip
+    """Takes the new velocities, moves, guards, counts contacts; returns whether a goal is due."""
+    n = pos.shape[0]
+    flagged = False
     for i in range(n):
         vel[i, 0], vel[i, 1] = new_vel[i, 0], new_vel[i, 1]
         pos[i, 0] += vel[i, 0] * dt
@@ -737,11 +777,13 @@ def _orca_model_step(
         time_left[i] -= dt
         distance = math.hypot(goal[i, 0] - pos[i, 0], goal[i, 1] - pos[i, 1])
         redraw[i] = distance < goal_tolerance or time_left[i] <= 0.0
+        flagged = flagged or redraw[i]
     for i in range(n):
         for j in range(i + 1, n):
             contact = radius[i] + radius[j]
             if (pos[i, 0] - pos[j, 0]) ** 2 + (pos[i, 1] - pos[j, 1]) ** 2 < contact * contact:
                 counters[1] += 1
+    return flagged
 
 
 @numba.njit(cache=True)
@@ -807,13 +849,14 @@ class OrcaModel(PedestrianModel):
             raise TypeError(f"OrcaModel needs an OrcaConfig, got {type(self.config).__name__}")
         #: Whether the motion depends on the robot (see :class:`PedestrianModel`).
         self.reacts_to_robot = self.config.reactive
-        c = self.config
-        self._params = np.array([c.neighbor_dist, c.time_horizon, c.time_horizon_obst], dtype=np.float64)
         self._goal = np.zeros((0, 2))
         self._redraw = np.zeros(0, dtype=np.bool_)
         self._time_left = np.zeros(0)
         self._counters = np.zeros(2, dtype=np.int64)
-        self._last_robot: np.ndarray | None = None
+        self._robot_memory = np.zeros(3)  # (known, x, y) of the robot at the previous step
+        self._params = np.zeros(_P_BOX + 4)
+        self._vmax = np.zeros(0)
+        self._obstacles = orca_obstacles()
 
     @classmethod
     def from_config(cls, crowd: object, orca: OrcaConfig | None = None) -> OrcaModel:
@@ -849,58 +892,78 @@ class OrcaModel(PedestrianModel):
             [self._verts[self._offsets[k] : self._offsets[k + 1]] for k in range(len(self._offsets) - 1)],
             bounds=self._bounds,
         )
-        self._work = _workspace(self._obstacles, self.config.max_neighbors)
-        self._orca_radius = self._radius + self.config.safety_margin
-        self._vmax = self._speed * self.config.max_speed_factor
-        self._pref, self._new_vel = np.zeros((n, 2)), np.zeros((n, 2))
+        c = self.config
+        params = [c.neighbor_dist, c.time_horizon, c.time_horizon_obst, c.goal_tolerance, c.safety_margin, 0.0,
+                  c.robot_responsibility, *self._bounds]  # fmt: skip
+        self._params = np.array(params, dtype=np.float64)
+        self._vmax = self._speed * c.max_speed_factor
         self._goal = np.empty_like(self._pos)
         self._redraw = np.zeros(n, dtype=np.bool_)
         self._time_left = np.empty(n)
         self._counters[:] = 0
-        self._last_robot = None
+        self._robot_memory[:] = 0.0
         for i in range(n):
             self._new_goal(i)
 
     def step(self, dt: float, robot_position: np.ndarray | None = None, robot_radius: float = 0.225) -> None:
-        """Advances the crowd by ``dt`` seconds.
-
-        With ``config.reactive`` and a robot position, the robot is a disc of ``robot_radius``
-        moving at the velocity of its last step (its position change over ``dt``; zero on the
-        first step after reset); otherwise the robot is ignored.
+        """Advances the crowd by ``dt`` seconds (see :meth:`advance`).
 
         Raises:
             ValueError: If ``dt`` is not positive, or a reactive model gets a non-finite robot.
         """
+        robot = None if robot_position is None else np.asarray(robot_position, dtype=np.float64).reshape(1, -1)
+        self.advance(dt, 1, robot, robot_radius)
+
+    def advance(self, dt: float, steps: int, robot_positions: np.ndarray | None = None,
+                robot_radius: float = 0.225) -> np.ndarray:
+        """Takes ``steps`` steps of ``dt``, in as few kernel calls as goal redraws allow.
+
+        With ``config.reactive`` and robot positions, the robot is a disc of ``robot_radius``
+        moving at the velocity of its last step (its position change over ``dt``; zero on the
+        first step after :meth:`reset` or after a step without robot); otherwise it is ignored.
+
+        Args:
+            dt: Time step, s, > 0.
+            steps: Number of steps, >= 1.
+            robot_positions: (steps, 2) robot centre at the start of each step, metres; None: none.
+            robot_radius: Robot disc radius, metres, > 0.
+
+        Returns:
+            (steps, P, 2) disc centres after each step, metres.
+
+        Raises:
+            ValueError: On a bad ``dt`` or ``steps``, or non-finite robot inputs for a reactive model.
+        """
         dt = self._check_step(dt)
-        robot = self._robot_state(dt, robot_position, robot_radius) if self.reacts_to_robot else None
-        has_robot = robot is not None
-        rpos, rvel = (robot[0], robot[1]) if has_robot else (np.zeros(2), np.zeros(2))
-        rr = robot_radius + self.config.safety_margin if has_robot else 0.0
-        xmin, ymin, xmax, ymax = self._box
-        _orca_model_step(
-            self._pos, self._vel, self._goal, self._speed, self._radius, self._orca_radius, self._vmax,
-            self._time_left, self._redraw, dt, xmin, ymin, xmax, ymax, self._verts, self._offsets,
-            *self._obstacles, self._params, self.config.max_neighbors, has_robot, rpos, rvel, float(rr),
-            self.config.robot_responsibility, self.config.goal_tolerance, *self._work, self._pref,
-            self._new_vel, self._counters,
-        )  # fmt: skip
-        if self._redraw.any():
+        if not (isinstance(steps, (int, np.integer)) and steps >= 1):
+            raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
+        path = self._robot_path(steps, robot_positions, robot_radius)
+        track = np.empty((steps, *self._pos.shape))
+        done = 0
+        while done < steps:
+            done = _orca_advance(
+                self._pos, self._vel, self._goal, self._speed, self._radius, self._vmax, self._time_left,
+                self._redraw, self._verts, self._offsets, *self._obstacles, self._params, self.config.max_neighbors,
+                dt, path, self._robot_memory, track, done, self._counters,
+            )  # fmt: skip
             for i in np.flatnonzero(self._redraw):
                 self._new_goal(i)
+        return track
 
-    def _robot_state(
-        self, dt: float, robot_position: np.ndarray | None, robot_radius: float
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        """Robot position (2,), metres, and velocity (2,), m/s, from the last position; None: none."""
-        if robot_position is None:
-            self._last_robot = None
-            return None
-        rpos = np.array(robot_position, dtype=np.float64).reshape(-1)
-        if rpos.shape != (2,) or not np.all(np.isfinite(rpos)) or not (math.isfinite(robot_radius) and robot_radius > 0):
-            raise ValueError(f"robot position and radius must be finite (radius > 0), got {robot_position}, {robot_radius}")
-        rvel = np.zeros(2) if self._last_robot is None else (rpos - self._last_robot) / dt
-        self._last_robot = rpos
-        return rpos, rvel
+    def _robot_path(self, steps: int, robot_positions: np.ndarray | None, robot_radius: float) -> np.ndarray:
+        """(steps, 2) robot centres for a reactive model given a robot, else (0, 2); sets its radius."""
+        if not self.reacts_to_robot or robot_positions is None:
+            self._robot_memory[0] = 0.0
+            return np.zeros((0, 2))
+        path = np.ascontiguousarray(robot_positions, dtype=np.float64)
+        radius_ok = math.isfinite(robot_radius) and robot_radius > 0
+        if path.shape != (steps, 2) or not np.all(np.isfinite(path)) or not radius_ok:
+            raise ValueError(
+                f"robot positions must be finite ({steps}, 2) and its radius finite and > 0, "
+                f"got shape {path.shape}, {robot_positions}, radius {robot_radius}"
+            )
+        self._params[_P_ROBOT_RADIUS] = robot_radius + self.config.safety_margin
+        return path
 
     def _new_goal(self, i: int) -> None:
         """Draws a goal for pedestrian ``i`` and sets its time budget, s."""

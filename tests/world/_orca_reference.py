@@ -209,7 +209,8 @@ def lp3(lines: list[Line], n_obst: int, begin: int, radius: float, result: np.nd
     return result
 
 
-def agent_lines(i, pos, vel, radii, vmax, obs, neighbor_dist, max_n, tau, tau_obst, dt, robot=None, robot_resp=0.5):  # noqa: ANN001, ANN201
+def agent_lines(i, pos, vel, radii, vmax, obs, neighbor_dist, max_n, tau, tau_obst, dt,  # noqa: ANN001, ANN201
+                robot=None, robot_resp=0.5):  # fmt: skip
     """Half-planes of agent i, obstacle ones first, and how many of them are obstacle ones."""
     n = len(pos)
     p, v, r = pos[i], vel[i], radii[i]
@@ -225,7 +226,8 @@ def agent_lines(i, pos, vel, radii, vmax, obs, neighbor_dist, max_n, tau, tau_ob
     return lines, n_obst
 
 
-def orca(pos, vel, radii, pref, vmax, obs, neighbor_dist, max_n, tau, tau_obst, dt, robot=None, robot_resp=0.5):  # noqa: ANN001, ANN201
+def orca(pos, vel, radii, pref, vmax, obs, neighbor_dist, max_n, tau, tau_obst, dt,  # noqa: ANN001, ANN201
+         robot=None, robot_resp=0.5):  # fmt: skip
     """New velocities (N, 2) of all agents; ``robot`` = (position, velocity, radius) or None."""
     out = np.empty((len(pos), 2))
     for i in range(len(pos)):

@@ -241,9 +241,11 @@ def test_feasible_result_is_the_closest_admissible_velocity() -> None:
         c, m = case["config"], case["config"].safety_margin
         robot = None if case["robot"] is None else (case["robot"][0], case["robot"][1], case["robot"][2] + m)
         for i in range(len(got)):
-            lines, _ = ref.agent_lines(i, case["positions"], case["velocities"], case["radii"] + m,
-                                       case["max_speeds"], case["obstacles"], c.neighbor_dist, c.max_neighbors,
-                                       c.time_horizon, c.time_horizon_obst, DT, robot, c.robot_responsibility)  # fmt: skip
+            lines, _ = ref.agent_lines(
+                i, case["positions"], case["velocities"], case["radii"] + m, case["max_speeds"], case["obstacles"],
+                c.neighbor_dist, c.max_neighbors, c.time_horizon, c.time_horizon_obst, DT, robot,
+                c.robot_responsibility,
+            )  # fmt: skip
             pref, vmax = case["preferred"][i], case["max_speeds"][i]
             if ref.lp2(lines, vmax, pref, False)[0] < len(lines):
                 continue  # infeasible: linear program 3's compromise, compared above
@@ -433,6 +435,17 @@ def test_bad_step_inputs_raise() -> None:
         model.step(DT, np.array([np.nan, 0.0]))
     with pytest.raises(TypeError):
         OrcaModel({"time_horizon": 5.0})  # type: ignore[arg-type]
+
+
+def test_benchmark_runs_on_stage7_layouts() -> None:
+    """The benchmark drives every model on real stage-7 layouts; ORCA crowds there have no contact."""
+    from mjnav.world import bench_crowd  # noqa: PLC0415  (loads the task configs)
+
+    costs = bench_crowd.crowd_step_cost(episodes=1, periods=2)
+    assert [c.model for c in costs] == list(bench_crowd.MODELS)
+    assert all(c.us_per_control_step > 0 and c.cpu_us_per_control_step >= 0 for c in costs)
+    contacts = bench_crowd.orca_contacts(episodes=2)
+    assert contacts["steps"] == 2 * 300 * 5 and contacts["overlapping_pair_steps"] == 0
 
 
 BAD_CONFIGS = {
