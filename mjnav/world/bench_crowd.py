@@ -46,12 +46,14 @@ class StepCost:
         cpu_us_per_control_step: The same in process CPU time, microseconds: the better measure
             on a loaded machine, where wall time also counts waiting for a core.
         periods: Control periods timed in all.
+        periods_per_call: Control periods advanced per ``advance`` call.
     """
 
     model: str
     us_per_control_step: float
     cpu_us_per_control_step: float
     periods: int
+    periods_per_call: int = 1
 
 
 def _layouts(task: TaskConfig, episodes: int, seed: int) -> list[Layout]:
@@ -86,21 +88,22 @@ def crowd_step_cost(
     episodes: int = 5,
     periods: int = 300,
     seed: int = 0,
+    lookahead: int = 1,
 ) -> list[StepCost]:
-    """Wall time of one control period of each pedestrian model on real episode layouts.
+    """Time of one control period of each pedestrian model on real episode layouts.
 
-    Every model gets the same layouts; each episode is reset, warmed up for 5 periods (numba
-    compiles on first use; not timed), then ``periods`` periods of ``advance(dt, substeps,
-    robot_positions)`` are timed, the robot moving from start to goal. The cost of the random
-    walk here is per period; the simulation advances it 10 periods per call
-    (:data:`mjnav.sim.CROWD_LOOKAHEAD`), which is cheaper still.
+    Every model gets the same layouts; each episode is reset, warmed up (numba compiles on first
+    use; not timed), then ``periods`` periods are timed, the robot moving from start to goal.
+    A model that reacts to the robot is advanced one period per call; one that ignores it
+    ``lookahead`` periods per call (:class:`mjnav.sim.NavSim` uses ``CROWD_LOOKAHEAD`` = 10).
 
     Args:
         task: Stage name or YAML path for :func:`mjnav.config.load_task`.
         models: Names from :data:`MODELS`.
         episodes: Layouts per model, >= 1.
-        periods: Timed control periods per episode, >= 1.
+        periods: Timed control periods per episode, >= 1 (rounded up to whole calls).
         seed: Seed of the layouts and of the models' generators.
+        lookahead: Periods per call for models that ignore the robot, >= 1.
 
     Returns:
         One :class:`StepCost` per model, in the order given.
@@ -117,15 +120,17 @@ def crowd_step_cost(
         for k, layout in enumerate(layouts):
             model = MODELS[name](config)
             _reset(model, config, layout, seed + k)
-            path = _robot_path(layout, periods + 5, substeps)
-            for p in range(5):
-                model.advance(dt, substeps, robot_positions=path[p], robot_radius=config.robot.radius)
+            block = 1 if model.reacts_to_robot else lookahead
+            calls = -(-periods // block)
+            path = _robot_path(layout, (calls + 1) * block, substeps).reshape(calls + 1, block * substeps, 2)
+            model.advance(dt, block * substeps, robot_positions=path[0], robot_radius=config.robot.radius)
             start, cpu = time.perf_counter(), time.process_time()
-            for p in range(5, periods + 5):
-                model.advance(dt, substeps, robot_positions=path[p], robot_radius=config.robot.radius)
-            per_episode.append(((time.perf_counter() - start) / periods, (time.process_time() - cpu) / periods))
+            for c in range(1, calls + 1):
+                model.advance(dt, block * substeps, robot_positions=path[c], robot_radius=config.robot.radius)
+            timed = calls * block
+            per_episode.append(((time.perf_counter() - start) / timed, (time.process_time() - cpu) / timed))
         wall, cpu = 1e6 * np.median(per_episode, axis=0)
-        results.append(StepCost(name, float(wall), float(cpu), periods * episodes))
+        results.append(StepCost(name, float(wall), float(cpu), periods * episodes, block))
     return results
 
 
@@ -208,11 +213,12 @@ def orca_contacts(
 def main() -> None:
     """Prints the cost table of every model (and pyrvo's if installed) and the contacts of 20 ORCA
     episodes on stage 7."""
-    costs = [*crowd_step_cost(), pyrvo_step_cost()]
-    print("model          wall us/control step   CPU us/control step")
+    print("model          periods/call  wall us/control step  CPU us/control step")
+    costs = [*crowd_step_cost(), *crowd_step_cost(models=("random_walk", "orca"), lookahead=10), pyrvo_step_cost()]
     for cost in costs:
         if cost is not None:
-            print(f"{cost.model:14s} {cost.us_per_control_step:20.1f} {cost.cpu_us_per_control_step:21.1f}")
+            print(f"{cost.model:14s} {cost.periods_per_call:12d} {cost.us_per_control_step:21.1f} "
+                  f"{cost.cpu_us_per_control_step:20.1f}")  # fmt: skip
     print("orca contacts, stage7:", orca_contacts(episodes=20))
 
 

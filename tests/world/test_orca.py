@@ -433,6 +433,11 @@ def test_bad_step_inputs_raise() -> None:
             model.step(dt)
     with pytest.raises(ValueError, match="robot"):
         model.step(DT, np.array([np.nan, 0.0]))
+    with pytest.raises(ValueError, match="robot"):
+        model.advance(DT, 2, robot_positions=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="robot"):
+        model.step(DT, np.zeros(2), robot_radius=0.0)
+    model.step(DT, np.array([0.0, 0.0, 0.7]))  # (x, y, yaw): extra columns are ignored
     with pytest.raises(TypeError):
         OrcaModel({"time_horizon": 5.0})  # type: ignore[arg-type]
 
