@@ -872,14 +872,16 @@ class OrcaModel(PedestrianModel):
 
     @classmethod
     def from_config(cls, crowd: object, orca: OrcaConfig | None = None) -> OrcaModel:
-        """Creates the model for a crowd config.
+        """Creates the model for a task's crowd config.
 
         Args:
-            crowd: The task's :class:`~mjnav.schema.CrowdConfig`; its ``reactive`` field, when it
-                has one, overrides ``orca.reactive``.
-            orca: ORCA parameters; None: the defaults.
+            crowd: The task's :class:`~mjnav.schema.CrowdConfig`. Read when present: ``orca``
+                (an :class:`OrcaConfig`, used when ``orca`` is None) and ``reactive`` (when not
+                None it overrides :attr:`OrcaConfig.reactive`).
+            orca: ORCA parameters; None: ``crowd.orca`` or the defaults.
         """
-        orca = OrcaConfig() if orca is None else orca
+        if orca is None:
+            orca = getattr(crowd, "orca", None) or OrcaConfig()
         reactive = getattr(crowd, "reactive", None)
         return cls(orca if reactive is None else dataclasses.replace(orca, reactive=bool(reactive)))
 

@@ -416,10 +416,14 @@ def test_empty_crowd_and_registry_shape() -> None:
 
     @dataclasses.dataclass(frozen=True)
     class Crowd:
-        reactive: bool = True
+        reactive: bool | None = True
+        orca: OrcaConfig = OrcaConfig(time_horizon=2.0)
 
     assert OrcaModel.from_config(Crowd()).reacts_to_robot
+    assert OrcaModel.from_config(Crowd()).config.time_horizon == 2.0
+    assert not OrcaModel.from_config(Crowd(reactive=None)).reacts_to_robot
     assert not OrcaModel.from_config(object()).reacts_to_robot
+    assert OrcaModel.from_config(object(), OrcaConfig(reactive=True)).reacts_to_robot
 
 
 def test_bad_step_inputs_raise() -> None:
