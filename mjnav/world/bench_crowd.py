@@ -180,8 +180,9 @@ def orca_contacts(
 ) -> dict[str, int]:
     """Pedestrian-pedestrian contacts of ORCA crowds over whole episodes of ``task`` (no robot).
 
-    A non-reactive crowd does not depend on the robot, so these are exactly the crowds of the
-    task's episodes with those layouts. Each episode runs ``timing.episode_steps`` control periods.
+    A non-reactive crowd does not depend on the robot, so these are the crowds of real episodes
+    (layouts drawn as the task draws them; goal draws seeded here, not as :class:`mjnav.sim.NavSim`
+    seeds them), each run for the full ``timing.episode_steps`` control periods.
 
     Args:
         task: Stage name or YAML path.
