@@ -87,6 +87,8 @@ VERBS: dict[str, Verb] = {
     "bench": Verb("bench", "Speed benchmarks.", subverbs={
         "throughput": _verb("bench throughput", "Environment and adapter steps/s with a per-part breakdown.",
                             "mjnav.bench.throughput"),
+        "crowd": _verb("bench crowd", "Pedestrian models' cost per control step and ORCA's contacts.",
+                       "mjnav.bench.crowd"),
         "sim": _verb("bench sim", "NavSim build, reset and control-step times per LiDAR backend.", "mjnav.bench.sim"),
         "action_layer": _verb("bench action_layer", "Region, action mapping and MPC latencies vs the authors'.",
                               "mjnav.bench.action_layer"),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import math
+import numbers
 import re
 import types
 import typing
@@ -114,6 +115,77 @@ class ObstacleConfig:
         return max(self.slots, self.count)
 
 
+#: Responsibility an ORCA pedestrian takes for avoiding the robot: as another agent (half) or as a
+#: non-avoiding obstacle (all).
+ROBOT_RESPONSIBILITY = {"agent": 0.5, "obstacle": 1.0}
+
+
+@dataclasses.dataclass(frozen=True)
+class OrcaConfig:
+    """ORCA parameters. Defaults are CrowdNav's (``crowd_sim/envs/policy/orca.py``).
+
+    Attributes:
+        neighbor_dist: Largest centre distance of another disc that is considered, metres, > 0
+            (CrowdNav 10; RVO2's examples 15).
+        max_neighbors: Most other discs considered per agent, nearest first, >= 0 (CrowdNav 10).
+        time_horizon: Other discs must not be hit within this time under constant velocities, s,
+            > 0 (CrowdNav 5; longer: earlier, more cautious avoidance).
+        time_horizon_obst: Same for walls and obstacles, s, > 0 (CrowdNav 5).
+        safety_margin: Added to every disc radius (pedestrians and robot) inside ORCA, metres,
+            >= 0 (CrowdNav adds 0.01 + ``safety_space`` = 0.01). Contacts use the true radii.
+        max_speed_factor: Max speed as a multiple of each pedestrian's preferred speed, >= 1
+            (CrowdNav 1: ``max_speed = v_pref``).
+        goal_tolerance: Distance to the goal at which a new goal is drawn, metres, > 0 (as social
+            force).
+        reactive: Pedestrians avoid the robot disc when True; ignore it when False (the paper's
+            non-reactive crowd, the default).
+        robot_as: With ``reactive``, ``"agent"``: pedestrians take half of the avoidance, as if
+            the robot were another ORCA agent (CrowdNav's visible robot); ``"obstacle"``: they
+            take all of it, as for a moving obstacle that does not avoid them.
+    """
+
+    neighbor_dist: float = 10.0
+    max_neighbors: int = 10
+    time_horizon: float = 5.0
+    time_horizon_obst: float = 5.0
+    safety_margin: float = 0.01
+    max_speed_factor: float = 1.0
+    goal_tolerance: float = 0.5
+    reactive: bool = False
+    robot_as: Literal["agent", "obstacle"] = "agent"
+
+    def __post_init__(self) -> None:
+        for name in ("neighbor_dist", "time_horizon", "time_horizon_obst", "goal_tolerance"):
+            _require_number(name, getattr(self, name), 0.0, strict=True)
+        _require_number("safety_margin", self.safety_margin, 0.0, strict=False)
+        _require_number("max_speed_factor", self.max_speed_factor, 1.0, strict=False)
+        count = self.max_neighbors
+        integer = isinstance(count, numbers.Integral) and not isinstance(count, bool)
+        _require(integer and count >= 0, "max_neighbors", f"must be an integer >= 0, got {count!r}")
+        _require(isinstance(self.reactive, bool), "reactive", f"must be true or false, got {self.reactive!r}")
+        _require(self.robot_as in ROBOT_RESPONSIBILITY, "robot_as",
+                 f"must be one of {sorted(ROBOT_RESPONSIBILITY)}, got {self.robot_as!r}")  # fmt: skip
+
+    @property
+    def robot_responsibility(self) -> float:
+        """Share of the avoidance of the robot that a pedestrian takes (see :attr:`robot_as`)."""
+        return ROBOT_RESPONSIBILITY[self.robot_as]
+
+
+def _require(cond: bool, name: str, msg: str) -> None:
+    """Raises ``ValueError("orca.<name>: <msg>")`` unless ``cond``."""
+    if not cond:
+        raise ValueError(f"orca.{name}: {msg}")
+
+
+def _require_number(name: str, value: object, low: float, strict: bool) -> None:
+    """Raises unless ``value`` is a finite real number above ``low`` (or equal, unless ``strict``)."""
+    real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    ok = real and math.isfinite(value) and (value > low if strict else value >= low)
+    _require(ok, name, f"must be a finite number {'>' if strict else '>='} {low}, got {value!r}")
+
+
+
 @dataclasses.dataclass(frozen=True)
 class CrowdConfig:
     """Pedestrians: mocap-driven cylinders.
@@ -124,7 +196,11 @@ class CrowdConfig:
         radius: Radius range [min, max], metres.
         speed: Speed range [min, max], m/s.
         model: Motion model: a name of :data:`mjnav.world.PEDESTRIAN_MODELS` (``random_walk``, the
-            paper's, or ``social_force``; checked when the task config is built).
+            paper's, ``social_force`` or ``orca``; checked when the task config is built).
+        reactive: Whether pedestrians react to the robot: None keeps the model's own behaviour (the
+            random walk and ORCA ignore the robot, as in the paper; social force is repelled by it);
+            true makes social force and ORCA avoid it (ORCA: as :attr:`OrcaConfig.robot_as`), false
+            makes them ignore it. The random walk cannot react (true is refused).
         yaw_rate: Random-walk heading rate bound, rad/s (uniform in ±yaw_rate).
         yaw_interval: Random walk: the yaw rate is re-drawn every this many seconds (proposal).
         height: Cylinder height, metres.
@@ -136,6 +212,7 @@ class CrowdConfig:
         robot_strength: Social force: robot repulsion magnitude, m/s².
         goal_tolerance: Social force: distance at which a new goal is drawn, metres.
         max_speed_factor: Social force: speed cap as a multiple of the desired speed.
+        orca: ORCA's parameters (``crowd.model=orca``); its ``reactive`` is set by ``crowd.reactive``.
     """
 
     count: int = 0
@@ -154,6 +231,8 @@ class CrowdConfig:
     robot_strength: float = 10.0
     goal_tolerance: float = 0.5
     max_speed_factor: float = 1.3
+    reactive: bool | None = None
+    orca: OrcaConfig = OrcaConfig()
 
     def __post_init__(self) -> None:
         check(self.count >= 0, "count", "must be >= 0")

@@ -20,6 +20,7 @@ from __future__ import annotations
 from mjnav.registry import Registry
 from mjnav.schema import ConfigError, CrowdConfig
 from mjnav.world.crowd import PedestrianModel, RandomWalkModel
+from mjnav.world.orca import OrcaModel
 from mjnav.world.social_force import SocialForceModel
 
 __all__ = ["PEDESTRIAN_MODELS", "make_pedestrian_model"]
@@ -29,12 +30,30 @@ PEDESTRIAN_MODELS: Registry[PedestrianModel] = Registry("pedestrian model", "mjn
 
 
 def _random_walk(config: CrowdConfig) -> RandomWalkModel:
-    """The paper's random walk, with the crowd's yaw rate (rad/s) and yaw interval (s)."""
+    """The paper's random walk, with the crowd's yaw rate (rad/s) and yaw interval (s); it cannot
+    react to the robot, so ``crowd.reactive=true`` is refused."""
+    if config.reactive:
+        raise ConfigError("crowd.reactive: the random walk cannot react to the robot "
+                          "(crowd.model=social_force or crowd.model=orca can)")
     return RandomWalkModel(yaw_rate=config.yaw_rate, yaw_interval=config.yaw_interval)
 
 
+def _social_force(config: CrowdConfig) -> SocialForceModel:
+    """Social force, repelled by the robot unless ``crowd.reactive=false``."""
+    model = SocialForceModel.from_config(config)
+    if config.reactive is False:
+        model.reacts_to_robot = False  # the simulation then advances it without the robot
+    return model
+
+
+def _orca(config: CrowdConfig) -> OrcaModel:
+    """ORCA with ``crowd.orca``'s parameters; it avoids the robot only with ``crowd.reactive=true``."""
+    return OrcaModel.from_config(config)
+
+
 PEDESTRIAN_MODELS.register("random_walk", _random_walk, config=CrowdConfig, source="builtin")
-PEDESTRIAN_MODELS.register("social_force", SocialForceModel.from_config, config=CrowdConfig, source="builtin")
+PEDESTRIAN_MODELS.register("social_force", _social_force, config=CrowdConfig, source="builtin")
+PEDESTRIAN_MODELS.register("orca", _orca, config=CrowdConfig, source="builtin")
 
 
 def make_pedestrian_model(config: CrowdConfig) -> PedestrianModel:

@@ -51,6 +51,7 @@ from typing import Literal, NamedTuple
 import numba
 import numpy as np
 
+from mjnav.schema import ROBOT_RESPONSIBILITY, OrcaConfig
 from mjnav.world.crowd import PedestrianModel, pack_polygons, polygon_contact
 from mjnav.world.social_force import GOAL_CLEARANCE, GOAL_TIME_FACTOR, GOAL_TIME_SLACK, _obstacle_gap
 
@@ -67,75 +68,8 @@ __all__ = [
 RVO_EPSILON = 1e-5
 #: Responsibility a pedestrian takes for avoiding another pedestrian (reciprocal: half each).
 RECIPROCAL = 0.5
-#: Responsibility for avoiding the robot: as another agent (half) or as a non-avoiding obstacle (all).
-ROBOT_RESPONSIBILITY = {"agent": 0.5, "obstacle": 1.0}
 _GOAL_ATTEMPTS = 100
 _MIN_EDGE = 1e-9  # shorter polygon edges (repeated vertices) are dropped, metres
-
-
-@dataclasses.dataclass(frozen=True)
-class OrcaConfig:
-    """ORCA parameters. Defaults are CrowdNav's (``crowd_sim/envs/policy/orca.py``).
-
-    Attributes:
-        neighbor_dist: Largest centre distance of another disc that is considered, metres, > 0
-            (CrowdNav 10; RVO2's examples 15).
-        max_neighbors: Most other discs considered per agent, nearest first, >= 0 (CrowdNav 10).
-        time_horizon: Other discs must not be hit within this time under constant velocities, s,
-            > 0 (CrowdNav 5; longer: earlier, more cautious avoidance).
-        time_horizon_obst: Same for walls and obstacles, s, > 0 (CrowdNav 5).
-        safety_margin: Added to every disc radius (pedestrians and robot) inside ORCA, metres,
-            >= 0 (CrowdNav adds 0.01 + ``safety_space`` = 0.01). Contacts use the true radii.
-        max_speed_factor: Max speed as a multiple of each pedestrian's preferred speed, >= 1
-            (CrowdNav 1: ``max_speed = v_pref``).
-        goal_tolerance: Distance to the goal at which a new goal is drawn, metres, > 0 (as social
-            force).
-        reactive: Pedestrians avoid the robot disc when True; ignore it when False (the paper's
-            non-reactive crowd, the default).
-        robot_as: With ``reactive``, ``"agent"``: pedestrians take half of the avoidance, as if
-            the robot were another ORCA agent (CrowdNav's visible robot); ``"obstacle"``: they
-            take all of it, as for a moving obstacle that does not avoid them.
-    """
-
-    neighbor_dist: float = 10.0
-    max_neighbors: int = 10
-    time_horizon: float = 5.0
-    time_horizon_obst: float = 5.0
-    safety_margin: float = 0.01
-    max_speed_factor: float = 1.0
-    goal_tolerance: float = 0.5
-    reactive: bool = False
-    robot_as: Literal["agent", "obstacle"] = "agent"
-
-    def __post_init__(self) -> None:
-        for name in ("neighbor_dist", "time_horizon", "time_horizon_obst", "goal_tolerance"):
-            _require_number(name, getattr(self, name), 0.0, strict=True)
-        _require_number("safety_margin", self.safety_margin, 0.0, strict=False)
-        _require_number("max_speed_factor", self.max_speed_factor, 1.0, strict=False)
-        count = self.max_neighbors
-        integer = isinstance(count, (int, np.integer)) and not isinstance(count, bool)
-        _require(integer and count >= 0, "max_neighbors", f"must be an integer >= 0, got {count!r}")
-        _require(isinstance(self.reactive, bool), "reactive", f"must be true or false, got {self.reactive!r}")
-        _require(self.robot_as in ROBOT_RESPONSIBILITY, "robot_as",
-                 f"must be one of {sorted(ROBOT_RESPONSIBILITY)}, got {self.robot_as!r}")  # fmt: skip
-
-    @property
-    def robot_responsibility(self) -> float:
-        """Share of the avoidance of the robot that a pedestrian takes (see :attr:`robot_as`)."""
-        return ROBOT_RESPONSIBILITY[self.robot_as]
-
-
-def _require(cond: bool, name: str, msg: str) -> None:
-    """Raises ``ValueError("orca.<name>: <msg>")`` unless ``cond``."""
-    if not cond:
-        raise ValueError(f"orca.{name}: {msg}")
-
-
-def _require_number(name: str, value: object, low: float, strict: bool) -> None:
-    """Raises unless ``value`` is a finite real number above ``low`` (or equal, unless ``strict``)."""
-    real = isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)
-    ok = real and math.isfinite(value) and (value > low if strict else value >= low)
-    _require(ok, name, f"must be a finite number {'>' if strict else '>='} {low}, got {value!r}")
 
 
 class OrcaObstacles(NamedTuple):

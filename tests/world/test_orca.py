@@ -448,7 +448,7 @@ def test_bad_step_inputs_raise() -> None:
 
 def test_benchmark_runs_on_stage7_layouts() -> None:
     """The benchmark drives every model on real stage-7 layouts; ORCA crowds there have no contact."""
-    from mjnav.world import bench_crowd  # noqa: PLC0415  (loads the task configs)
+    from mjnav.bench import crowd as bench_crowd  # noqa: PLC0415  (loads the task configs)
 
     costs = bench_crowd.crowd_step_cost(episodes=1, periods=2)
     assert [c.model for c in costs] == list(bench_crowd.MODELS)

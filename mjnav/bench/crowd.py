@@ -6,25 +6,28 @@ models through their public :class:`~mjnav.world.crowd.PedestrianModel` interfac
 control period (``timing.substeps`` steps of the physics time step) per call, as
 :class:`mjnav.sim.NavSim` does.
 
-Run ``python -m mjnav.world.bench_crowd`` for a table (about 30 s).
+Run ``mjnav bench crowd`` for a table (about 30 s; ``--help`` lists the keys).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import sys
 import time
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from mjnav.args import Grammar, Parsed
 from mjnav.config import TaskConfig, load_task
+from mjnav.schema import ConfigError
 from mjnav.world.crowd import PedestrianModel, RandomWalkModel
 from mjnav.world.layout import Layout, sample_layout
 from mjnav.world.orca import OrcaConfig, OrcaModel
 from mjnav.world.shapes import make_shape_bank
 from mjnav.world.social_force import SocialForceModel
 
-__all__ = ["MODELS", "StepCost", "crowd_step_cost", "orca_contacts", "pyrvo_step_cost"]
+__all__ = ["MODELS", "CrowdOptions", "StepCost", "crowd_step_cost", "grammar", "orca_contacts", "pyrvo_step_cost", "run"]
 
 #: Models the benchmark builds, by name: a factory from the task config.
 MODELS: dict[str, Callable[[TaskConfig], PedestrianModel]] = {
@@ -211,17 +214,45 @@ def orca_contacts(
     return totals
 
 
-def main() -> None:
-    """Prints the cost table of every model (and pyrvo's if installed) and the contacts of 20 ORCA
-    episodes on stage 7."""
+@dataclasses.dataclass(frozen=True)
+class CrowdOptions:
+    """The keys of ``bench crowd``.
+
+    Attributes:
+        task: Stage whose layouts and crowd are used.
+        episodes: Layouts timed per model (each ``periods`` control periods).
+        periods: Control periods timed per layout.
+        contact_episodes: Whole ORCA episodes whose pedestrian-pedestrian contacts are counted.
+    """
+
+    task: str = "stage7"
+    episodes: int = 5
+    periods: int = 300
+    contact_episodes: int = 20
+
+
+def grammar() -> Grammar:
+    """:class:`CrowdOptions`; no config overrides."""
+    return Grammar(CrowdOptions, ())
+
+
+def run(parsed: Parsed, argv: list[str]) -> int:
+    """Prints the cost table of every model (and pyrvo's if installed) and ORCA's contacts; an
+    unknown task is one error line (exit code 2)."""
+    opts: CrowdOptions = parsed.options
+    try:
+        load_task(opts.task)
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     print("model          periods/call  wall us/control step  CPU us/control step")
-    costs = [*crowd_step_cost(), *crowd_step_cost(models=("random_walk", "orca"), lookahead=10), pyrvo_step_cost()]
+    costs = [*crowd_step_cost(opts.task, episodes=opts.episodes, periods=opts.periods),
+             *crowd_step_cost(opts.task, models=("random_walk", "orca"), episodes=opts.episodes,
+                              periods=opts.periods, lookahead=10),
+             pyrvo_step_cost(opts.task, episodes=opts.episodes, periods=opts.periods)]
     for cost in costs:
         if cost is not None:
             print(f"{cost.model:14s} {cost.periods_per_call:12d} {cost.us_per_control_step:21.1f} "
                   f"{cost.cpu_us_per_control_step:20.1f}")  # fmt: skip
-    print("orca contacts, stage7:", orca_contacts(episodes=20))
-
-
-if __name__ == "__main__":
-    main()
+    print(f"orca contacts, {opts.task}:", orca_contacts(opts.task, episodes=opts.contact_episodes))
+    return 0
