@@ -8,7 +8,7 @@ Arguments are ``key=value`` (values parsed as YAML)::
     seed=3                 same as train.seed=3
     resume=RUN_DIR         continue RUN_DIR from its latest checkpoint up to train.iterations
     init=CHECKPOINT        start a new run from a checkpoint's actor and critic weights
-    curriculum=true        walk stage1 -> stage7 (train.curriculum.*); without train.iterations= the
+    curriculum=true        walk the numbered stages (train.curriculum.*); without train.iterations= the
                            cap is every stage's whole budget (:func:`curriculum_iterations`)
     start=auto             where a new run on stage K starts (:func:`resolve_start`): ``shipped``
                            (init from ``docs/policies/stage<K-1>_checkpoint.pt`` with the task
@@ -36,6 +36,7 @@ from typing import Any
 import yaml
 
 from mjnav.schema import ConfigError, apply_overrides, from_dict, parse_override, to_dict
+from mjnav.stages import stage_numbers
 from mjnav.train import curriculum as stages
 from mjnav.train.config import TrainConfig, load_train
 from mjnav.train.curriculum import CurriculumState, run_curriculum, stage_name
@@ -136,18 +137,18 @@ def curriculum_iterations(train: TrainConfig) -> int:
 
     A curriculum stops at ``train.iterations``; without ``train.iterations=`` on the command line
     the cap is this, so ``curriculum=true`` walks to ``last_stage`` even if no stage is promoted
-    early (e.g. 7 stages × ceil(3M / 16,384) = 1,288 iterations with the defaults).
+    early (e.g. 7 stages × ceil(3M / 16,384) = 1,288 iterations with the defaults and stage1..stage7).
     """
     cfg = train.curriculum
     per_stage = math.ceil(cfg.stage_steps / (train.num_envs * train.steps_per_env))
-    return (cfg.last_stage - cfg.first_stage + 1) * per_stage
+    return len(cfg.stages()) * per_stage
 
 
 def _stage_number(task: str | None) -> int | None:
-    """``3`` for the bundled ``stage3``; None for anything else (a YAML path)."""
+    """``3`` for the numbered stage ``stage3`` of the tasks folder; None for anything else (a YAML path)."""
     if task is None or not task.startswith("stage") or not task[5:].isdigit():
         return None
-    return int(task[5:]) if 1 <= int(task[5:]) <= 7 else None
+    return int(task[5:]) if int(task[5:]) in stage_numbers() else None
 
 
 def shipped_checkpoint(stage: int, root: Path | None = None) -> Path | None:
@@ -171,7 +172,7 @@ def resolve_start(args: RunArgs, root: Path | None = None) -> str:
         return "init" if args.init is not None else "curriculum"
     stage = _stage_number(args.task)
     if explicit and args.start != "scratch" and (stage is None or stage < 2):
-        raise ConfigError(f"start={args.start}: needs a bundled stage2..stage7 task, got {args.task!r}")
+        raise ConfigError(f"start={args.start}: needs a numbered stage after stage1 (stage2, ...), got {args.task!r}")
     if args.start == "shipped" and shipped_checkpoint(stage - 1, root) is None:
         raise ConfigError(f"start=shipped: no stage{stage - 1}_checkpoint.pt in {root or SHIPPED_POLICIES}")
     if args.start in ("auto", "shipped") and stage is not None and stage >= 2:
@@ -218,10 +219,11 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
     if start == "curriculum":
         if not args.curriculum:  # a walk up to the requested stage
             last = _stage_number(args.task)
-            train = apply_overrides(train, ["curriculum.first_stage=1", f"curriculum.last_stage={last}"])
+            train = apply_overrides(train, [f"curriculum.first_stage={stage_numbers()[0]}",
+                                            f"curriculum.last_stage={last}"])
         if not given_iterations:
             train = apply_overrides(train, [f"iterations={curriculum_iterations(train)}"])
-        state = CurriculumState(stage=train.curriculum.first_stage)
+        state = CurriculumState(stage=train.curriculum.stages()[0])
         task, label = stages.load_stage(stage_name(state.stage), overrides), "curriculum"
     else:
         if start == "shipped":
@@ -408,8 +410,8 @@ def _start_line(plan: RunPlan) -> str:
     if plan.checkpoint is not None:
         return f"start: resuming {plan.run_dir} from {plan.checkpoint}"
     if plan.curriculum is not None:
-        c = t.curriculum
-        return (f"start: curriculum stage{c.first_stage} -> stage{c.last_stage} from random weights (promotion at "
+        c, walk = t.curriculum, t.curriculum.stages()
+        return (f"start: curriculum stage{walk[0]} -> stage{walk[-1]} from random weights (promotion at "
                 f"{c.threshold:.0%} deterministic success or {c.stage_steps:,} env steps per stage; "
                 f"at most {t.iterations} iterations); start=shipped|scratch to change")
     steps = t.iterations * t.num_envs * t.steps_per_env
