@@ -79,7 +79,7 @@ def export(argv: Sequence[str] | None = None) -> int:
     """Export one episode as a standalone MuJoCo scene plus pedestrian trajectories.
 
     ``task=stage6 seed=7 out=DIR [steps=300] [task.crowd.count=25 ...]`` (the ``task.`` prefix of
-    overrides is optional here); writes ``DIR/scene.xml`` and ``DIR/trajectory.npz`` (``docs/export.md``).
+    overrides is optional here); writes ``DIR/scene.xml`` and ``DIR/trajectory.npz`` (export page of the docs).
     """
     from mjnav.config import load_task
     from mjnav.export import export_world

@@ -5,7 +5,7 @@ poses for that seed, the robot with its rangefinders at the start, pedestrians a
 positions; meshes are inline, so the file needs no other asset) and ``trajectory.npz`` (the
 pedestrian mocap positions per control step of the episode with the robot holding still at the
 start, plus start, goal and the first noise-free scan). The format is documented in
-``docs/export.md``; the scene loads with plain ``mujoco.MjModel.from_xml_path``.
+the export page of the documentation; the scene loads with plain ``mujoco.MjModel.from_xml_path``.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def record_episode(sim: NavSim, physics: mjcf.Physics, seed: int, steps: int) ->
         steps: Control steps to record after the initial state.
 
     Returns:
-        Arrays of :mod:`docs/export.md` (``time``, ``mocap_pos``, ``robot_qpos``, ``start``,
+        Arrays of the export format (``time``, ``mocap_pos``, ``robot_qpos``, ``start``,
         ``goal``, ``ranges``, ``obstacle_shapes``, ``obstacle_poses``, ``ped_radii``).
     """
     rng = np.random.default_rng(seed)

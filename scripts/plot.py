@@ -2,7 +2,7 @@
 
     python scripts/plot.py episode task=stage6 policy=PATH_OR_NAME [seed=0] [out=episode.png]
                            [plans=0.5,1.5,2.5] [task.KEY=VALUE ...]
-    python scripts/plot.py compare tasks=stage5,stage6,stage7 policies=docs/policies/{stage}_policy.pt,teb
+    python scripts/plot.py compare tasks=stage5,stage6,stage7 policies={stage}_policy,teb
                            [seed=0] [out=compare.png] [task.KEY=VALUE ...]
     python scripts/plot.py curve run=runs/stage6-... [out=curve.png] [smooth=10]
     python scripts/plot.py distance evals=A/stage7.jsonl,B/stage7.jsonl [labels=Ours,TEB]

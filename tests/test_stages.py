@@ -22,7 +22,8 @@ def stage8_tasks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """A copy of the tasks folder with a stage8.yaml (stage 5 with 25 pedestrians), made the tasks folder."""
     folder = tmp_path / "tasks"
     shutil.copytree(tasks_dir(), folder, ignore=shutil.ignore_patterns("recipes"))
-    (folder / "stage8.yaml").write_text("# Stage 8: stage 5 with 25 pedestrians.\nextends: stage5\ncrowd:\n  count: 25\n")
+    (folder / "stage8.yaml").write_text("# Stage 8: stage 5 with 25 pedestrians.\n"
+                                        "extends: stage5\ncrowd:\n  count: 25\n")
     monkeypatch.setenv(TASKS_ENV, str(folder))
     return folder
 

@@ -9,6 +9,8 @@ Accepted specs:
   (``train.policy.actor_activations``) or the spec's (relu, relu, hardswish);
 * a run directory (``runs/<name>`` or just ``<name>`` under ``runs/``): its ``policy.pt``, else
   its latest checkpoint;
+* a shipped policy's name (``stage6_policy``; ``stage5_policy.weights`` for its weights-only
+  checkpoint), looked up and checksum-checked in ``policies/manifest.yaml`` (:mod:`mjnav.shipped`);
 * a baseline name: ``mpc_goal``, ``teb``, ``dwa``, ``random_jerk`` (planners, see
   :mod:`mjnav.baselines`) or ``random`` (random raw actions through the learned action path).
 
@@ -29,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mjnav import shipped
 from mjnav.baselines import PLANNERS, RandomActionPolicy, make_planner
 from mjnav.schema import ConfigError
 
@@ -268,8 +271,11 @@ def _find(spec: str | Path, runs_dir: str | Path) -> Path:
     if not path.exists() and (Path(runs_dir) / str(spec)).exists():
         path = Path(runs_dir) / str(spec)
     if not path.exists():
+        path = shipped.resolve(spec) or path
+    if not path.exists():
         known = ", ".join(BASELINES)
-        raise FileNotFoundError(f"policy {str(spec)!r}: not a baseline ({known}) nor an existing path")
+        raise FileNotFoundError(f"policy {str(spec)!r}: not a baseline ({known}), a shipped policy "
+                                f"({', '.join(shipped.names())}) nor an existing path")
     return resolve_checkpoint(path)
 
 
@@ -318,8 +324,10 @@ def _input_size(module: torch.nn.Module) -> int | None:
 
 
 def _is_checkpoint(path: Path) -> bool:
-    """An rsl-rl checkpoint by name: ``model_<it>.pt`` or a shipped ``NAME_checkpoint.pt``."""
-    return re.fullmatch(r"model_\d+\.pt", path.name) is not None or path.name.endswith("_checkpoint.pt")
+    """An rsl-rl checkpoint by name: ``model_<it>.pt``, ``NAME_checkpoint.pt`` or a weights-only
+    ``checkpoint_weights.pt`` / shipped ``NAME_weights.pt``."""
+    names = ("_checkpoint.pt", "_weights.pt")
+    return re.fullmatch(r"model_\d+\.pt", path.name) is not None or path.name.endswith(names)
 
 
 def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "mean",
@@ -379,7 +387,8 @@ def _config_beside(path: Path) -> Path | None:
 
 def training_overrides(spec: str | Path, runs_dir: str | Path = "runs") -> tuple[str, ...]:
     """The dotted task overrides a learned policy was trained with (``run.task_overrides`` of its
-    config), so evaluation rebuilds the task it learned (design, reward, collision rule, ...).
+    config; a shipped policy's recipe), so evaluation rebuilds the task it learned (design,
+    reward, collision rule, ...).
 
     Returns:
         The overrides, or ``()`` for baselines and policies without a config.
@@ -387,6 +396,9 @@ def training_overrides(spec: str | Path, runs_dir: str | Path = "runs") -> tuple
     Raises:
         ValueError: The config exists but is not a training config.
     """
+    entry = None if str(spec) in BASELINES else shipped.find(_find(spec, runs_dir))
+    if entry is not None:  # a shipped policy: its recipe's overrides
+        return shipped.load_recipe(entry.recipe).task_overrides
     config = policy_config(spec, runs_dir)
     if config is None:
         return ()

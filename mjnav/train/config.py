@@ -9,7 +9,7 @@ scaled down for a 2-core CPU where they are not:
   and collapsed with more steps (measured when the issue was filed: return down to -190 near
   2.4M steps, 34.7 % held-out success at 4M);
   with 16,384 per update stochastic training success rose steadily (0.99 by 1.1M steps on
-  stage 2) and held (``docs/results.md``). More environments per adapter step share its fixed
+  stage 2) and held (the results page). More environments per adapter step share its fixed
   costs (the hand-off to the worker process, the wait for the slower half, rsl-rl's actor and
   critic forward passes), so 64 environments are kept; the longer rollout costs nothing per step.
 * update: 5 epochs x 4 minibatches of 4,096 = 20 gradient steps per iteration (the authors: 16
