@@ -210,10 +210,10 @@ def _same_design(checkpoint: Path, args: RunArgs) -> bool:
     """The shipped checkpoint's design (observation and action sizes) is the one requested."""
     from mjnav.eval.policies import training_overrides
 
-    shipped = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
+    trained = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
     overrides = [*training_overrides(checkpoint), *args.task_overrides]
     wanted = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
-    return shipped.design == wanted.design
+    return trained.design == wanted.design
 
 
 def plan_run(args: RunArgs) -> RunPlan:
