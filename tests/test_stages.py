@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
 
 import gymnasium as gym
@@ -18,14 +19,15 @@ from mjnav.train.config import CurriculumConfig, load_train
 
 
 @pytest.fixture
-def stage8_tasks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+def stage8_tasks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     """A copy of the tasks folder with a stage8.yaml (stage 5 with 25 pedestrians), made the tasks folder."""
     folder = tmp_path / "tasks"
     shutil.copytree(tasks_dir(), folder, ignore=shutil.ignore_patterns("recipes"))
     (folder / "stage8.yaml").write_text("# Stage 8: stage 5 with 25 pedestrians.\n"
                                         "extends: stage5\ncrowd:\n  count: 25\n")
     monkeypatch.setenv(TASKS_ENV, str(folder))
-    return folder
+    yield folder
+    gym.registry.pop("mjnav/Stage8-v1", None)  # later tests see the shipped stages only
 
 
 def test_shipped_stages_are_the_files() -> None:
