@@ -1,6 +1,6 @@
 """mjnav: MuJoCo crowd-navigation scenarios and learning-based convex MPC.
 
-``import mjnav`` registers the Gymnasium ids ``mjnav/Stage1-v1`` … ``mjnav/Stage7-v1``;
+``import mjnav`` registers the Gymnasium ids ``mjnav/Stage<N>-v1``, one per ``tasks/stage<N>.yaml``;
 ``mjnav.make_env("stage6", seed=0)`` returns the dm_control composer environment.
 """
 

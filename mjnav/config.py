@@ -1,6 +1,6 @@
 """Stage configs: :class:`TaskConfig` and the YAML loader.
 
-A stage file (``mjnav/stages/stageN.yaml``) holds *deltas* over the defaults of
+A stage file (``tasks/stageN.yaml``, :mod:`mjnav.stages`) holds *deltas* over the defaults of
 :class:`TaskConfig`; it may name one parent with ``extends: stageM`` (one
 level). Unknown keys and bad values fail at load time with the key's dotted
 path and the file's name. Dotted overrides (``crowd.count=25``) use the same
@@ -19,6 +19,7 @@ from mjnav.args import task_overrides
 from mjnav.control.action import ActionConfig
 from mjnav.control.mpc import MpcConfig
 from mjnav.geometry.region import RegionConfig
+from mjnav.resources import tasks_dir
 from mjnav.schema import (
     ArenaConfig,
     ConfigError,
@@ -135,12 +136,8 @@ def override_task(config: TaskConfig, overrides: dict[str, Any] | list[str] | No
 
 
 def task_dir() -> Path:
-    """Folder of the bundled stage YAML files."""
-    here = Path(__file__).resolve().parent
-    for candidate in (here / "stages", here.parent / "tasks"):
-        if candidate.is_dir():
-            return candidate
-    raise FileNotFoundError("stage folder not found next to the mjnav package")
+    """Folder of the stage YAML files (:func:`mjnav.resources.tasks_dir`)."""
+    return tasks_dir()
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:

@@ -13,7 +13,7 @@ writes an attached model's names with its scoping separator (``robot/base``, def
 ``/`` and ``ped_00/``), which its own parser refuses. In the exported scene the floor, walls,
 obstacles and pedestrians keep contype 0 (they never collide with each other) and have
 conaffinity 1, so any geom with contype bit 1 (MuJoCo's default) collides with them. The format
-is documented in ``docs/export.md``.
+is documented on mjnav's export page.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def record_episode(sim: NavSim, physics: mjcf.Physics, seed: int, steps: int) ->
         steps: Control steps to record after the initial state.
 
     Returns:
-        Arrays of :mod:`docs/export.md` (``time``, ``mocap_pos``, ``robot_qpos``, ``start``,
+        Arrays of the export format (``time``, ``mocap_pos``, ``robot_qpos``, ``start``,
         ``goal``, ``ranges``, ``obstacle_shapes``, ``obstacle_poses``, ``ped_radii``).
     """
     rng = np.random.default_rng(seed)

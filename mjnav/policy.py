@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import yaml
 
+from mjnav import shipped
 from mjnav.planners import PLANNERS
 
 __all__ = [
@@ -181,8 +182,11 @@ def find_policy(spec: str | Path, runs_dir: str | Path) -> Path:
     if not path.exists() and (Path(runs_dir) / str(spec)).exists():
         path = Path(runs_dir) / str(spec)
     if not path.exists():
+        path = shipped.resolve(spec) or path
+    if not path.exists():
         known = ", ".join(BASELINES)
-        raise FileNotFoundError(f"policy {str(spec)!r}: not a baseline ({known}) nor an existing path")
+        raise FileNotFoundError(f"policy {str(spec)!r}: not a baseline ({known}), a shipped policy "
+                                f"({', '.join(shipped.names())}) nor an existing path")
     return resolve_checkpoint(path)
 
 
@@ -236,8 +240,10 @@ def input_size(module: torch.nn.Module) -> int | None:
 
 
 def is_checkpoint(path: Path) -> bool:
-    """An rsl-rl checkpoint by name: ``model_<it>.pt`` or a shipped ``NAME_checkpoint.pt``."""
-    return re.fullmatch(r"model_\d+\.pt", path.name) is not None or path.name.endswith("_checkpoint.pt")
+    """An rsl-rl checkpoint by name: ``model_<it>.pt``, ``NAME_checkpoint.pt`` or a weights-only
+    ``checkpoint_weights.pt`` / shipped ``NAME_weights.pt``."""
+    names = ("_checkpoint.pt", "_weights.pt")
+    return re.fullmatch(r"model_\d+\.pt", path.name) is not None or path.name.endswith(names)
 
 
 def policy_config(spec: str | Path, runs_dir: str | Path = "runs") -> Path | None:
@@ -264,7 +270,8 @@ def config_beside(path: Path) -> Path | None:
 
 def training_overrides(spec: str | Path, runs_dir: str | Path = "runs") -> tuple[str, ...]:
     """The dotted task overrides a learned policy was trained with (``run.task_overrides`` of its
-    config), so evaluation rebuilds the task it learned (design, reward, collision rule, ...).
+    config; a shipped policy's recipe), so evaluation rebuilds the task it learned (design,
+    reward, collision rule, ...).
 
     Returns:
         The overrides, or ``()`` for baselines and policies without a config.
@@ -272,6 +279,9 @@ def training_overrides(spec: str | Path, runs_dir: str | Path = "runs") -> tuple
     Raises:
         ValueError: The config exists but is not a training config.
     """
+    entry = None if str(spec) in BASELINES else shipped.find(find_policy(spec, runs_dir))
+    if entry is not None:  # a shipped policy: its recipe's overrides
+        return shipped.load_recipe(entry.recipe).task_overrides
     config = policy_config(spec, runs_dir)
     if config is None:
         return ()

@@ -65,9 +65,9 @@ _IMPORT = re.compile(r"\bmjnav(?=[./\s]|$)", re.MULTILINE)  # imports, entry poi
 
 def export_revision(ref: str, folder: Path) -> str:
     """Extract ``mjnav`` and its stage files at ``ref`` into ``folder`` as package ``mjnav_ref``."""
-    # Until 2026-12-03 the stage files lived in tasks/ (mjnav/stages was a symlink to it).
-    old_layout = subprocess.run(["git", "-C", str(ROOT), "cat-file", "-e", f"{ref}:tasks"], capture_output=True)
-    paths = ["mjnav", "tasks"] if old_layout.returncode == 0 else ["mjnav"]
+    # The stage files live in tasks/ (until 2026-12-03, and again from issue 40 on, with the MJCF in assets/).
+    paths = ["mjnav", *(top for top in ("tasks", "assets") if subprocess.run(
+        ["git", "-C", str(ROOT), "cat-file", "-e", f"{ref}:{top}"], capture_output=True).returncode == 0)]
     try:
         archive = subprocess.run(
             ["git", "-C", str(ROOT), "archive", "--format=tar", ref, *paths], check=True, capture_output=True

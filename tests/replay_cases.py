@@ -80,9 +80,8 @@ def train_case(out: Path) -> dict:
 
 
 def _policy_spec(policy: str) -> str:
-    """A shipped policy's name as evaluation takes it (one place to change when the API moves)."""
-    if policy.startswith("stage") and policy[5].isdigit():
-        return f"docs/policies/{policy}.pt"
+    """A shipped policy's name as evaluation takes it (one place to change when the API moves):
+    the manifest name itself (``stage6_policy``, policies/manifest.yaml)."""
     return policy
 
 

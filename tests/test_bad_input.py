@@ -24,8 +24,8 @@ from mjnav.eval.policies import load_policy
 from mjnav.export import export_world
 from mjnav.geometry.region import compute_region
 from mjnav.schema import ConfigError
+from mjnav.shipped import resolve as resolve_shipped
 
-ROOT = Path(__file__).resolve().parents[1]
 ANGLES = np.linspace(0, 2 * np.pi, 360, endpoint=False)
 STATE, Q_S, Q_L = np.zeros((3, 2)), np.array([0.5, 0.0]), np.array([1.0, 0.0])
 
@@ -37,8 +37,8 @@ def _tmp() -> Path:
     (folder / "broken.yaml").write_text("arena: {size: [10, ")
     (folder / "list.yaml").write_text("- 1\n- 2\n")
     (folder / "empty.pt").write_bytes(b"")
-    for name in ("stage2_checkpoint.pt", "stage2_policy.pt"):
-        raw = (ROOT / "docs" / "policies" / name).read_bytes()
+    for name, shipped in (("stage2_checkpoint.pt", "stage2_policy.weights"), ("stage2_policy.pt", "stage2_policy")):
+        raw = resolve_shipped(shipped).read_bytes()
         (folder / f"truncated_{name}").write_bytes(raw[: len(raw) // 2])
     (folder / "file").write_text("not a folder")
     return folder
@@ -61,7 +61,7 @@ def _polygon() -> np.ndarray:
 
 
 def _mismatched_policy() -> None:
-    agent = load_policy(str(ROOT / "docs" / "policies" / "stage2_policy.pt"))
+    agent = load_policy("stage2_policy")
     agent.begin(NavGymEnv("stage1", overrides=["design=design1"], seed=0).task, 0)
 
 

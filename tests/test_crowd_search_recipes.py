@@ -1,4 +1,4 @@
-"""Lab scripts of the crowd stages (``docs/policies/experiments/``): ``search.py``, outcome-verified
+"""Lab scripts of the crowd stages (``experiments/``): ``search.py``, outcome-verified
 search, and ``group_pg.py``, policy gradient with scenario groups, which compare actions on a shared
 crowd future; ``privileged_actor.py``, PPO whose actor reads the crowd's true state."""
 
@@ -13,7 +13,7 @@ import torch
 
 from tests._scripts import ROOT
 
-FOLDER = ROOT / "docs" / "policies" / "experiments"
+FOLDER = ROOT / "experiments"
 CHECKPOINT = str(ROOT / "docs" / "policies" / "stage6_checkpoint.pt")
 
 

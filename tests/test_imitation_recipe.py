@@ -1,5 +1,5 @@
 """The imitation lab script behind the shipped goal-frame policies
-(``docs/policies/experiments/imitation.py``): its teacher, written in Ours' action space, asks
+(``experiments/imitation.py``): its teacher, written in Ours' action space, asks
 Ours' layer for the long-term point ``mpc_gap`` would choose."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import pytest
 
 from tests._scripts import ROOT
 
-SCRIPT = ROOT / "docs" / "policies" / "experiments" / "imitation.py"
+SCRIPT = ROOT / "experiments" / "imitation.py"
 
 
 def _load(monkeypatch: pytest.MonkeyPatch):

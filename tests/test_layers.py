@@ -23,12 +23,12 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mjnav"
 
 #: The layer order, lowest first (see the module docstring).
 LAYERS: list[list[str]] = [
-    ["mjnav.registry", "mjnav.timing"],
-    ["mjnav.schema", "mjnav.args", "mjnav.geometry"],
+    ["mjnav.registry", "mjnav.timing", "mjnav.resources"],
+    ["mjnav.schema", "mjnav.args", "mjnav.shipped", "mjnav.geometry"],
     ["mjnav.control"],
     ["mjnav.world", "mjnav.tasks", "mjnav.tasks.design", "mjnav.tasks.privileged"],
     ["mjnav.config"],
-    ["mjnav.planners", "mjnav.entities", "mjnav.sensors", "mjnav.fused"],
+    ["mjnav.stages", "mjnav.planners", "mjnav.entities", "mjnav.sensors", "mjnav.fused"],
     ["mjnav.sim"],
     ["mjnav.tasks.core", "mjnav.tasks.nav", "mjnav.tasks.observation", "mjnav.tasks.reward"],
     ["mjnav.viz", "mjnav.envs"],

@@ -81,7 +81,7 @@ class MpcConfig:
         warm_start: Hand the solver the shifted previous solution (OSQP: its starting iterate;
             DAQP: ``primal_start``, from which it derives the initial active set). None: the
             solver's own default: warm for OSQP (spec §5), cold for DAQP, which solved recorded
-            stage-7 problem sequences faster cold, with the same jerks (``docs/results.md``).
+            stage-7 problem sequences faster cold, with the same jerks (the results page).
         feasibility_tol: Largest accepted constraint violation of a returned solution (SI).
         brake_velocity_weight: Weight of Σ|v_k|² (vs 1 on Σ|a_k|²) in the braking fallback.
         track_short: Keep the ``|p_1 - Q_s|²`` term (False: track ``Q_l`` only, Design 3).

@@ -15,16 +15,15 @@ from collections.abc import Iterable
 import numpy as np
 from dm_control import composer, mjcf
 
-from mjnav.entities.arena import PARK_DEPTH, SCENE_CONAFFINITY, SCENE_CONTYPE
+from mjnav.entities.arena import PARK_DEPTH
+from mjnav.resources import asset
 from mjnav.schema import CrowdConfig
 
 __all__ = ["Crowd", "Pedestrian"]
 
-_PED_RGBA = (0.9, 0.75, 0.2, 1.0)
-
 
 class Pedestrian(composer.Entity):
-    """One pedestrian: a vertical cylinder standing on the floor (geom ``body``)."""
+    """One pedestrian: a vertical cylinder standing on the floor (geom ``body``, ``assets/pedestrian.xml``)."""
 
     def _build(self, radius: float, height: float, name: str = "ped") -> None:
         """Builds the MJCF.
@@ -34,11 +33,11 @@ class Pedestrian(composer.Entity):
             height: Cylinder height, metres.
             name: MJCF model name (``ped_07``).
         """
-        self._mjcf_root = mjcf.RootElement(model=name)
-        self._geom = self._mjcf_root.worldbody.add(
-            "geom", name="body", type="cylinder", size=(radius, height / 2), pos=(0, 0, height / 2),
-            rgba=_PED_RGBA, contype=SCENE_CONTYPE, conaffinity=SCENE_CONAFFINITY,
-        )
+        self._mjcf_root = mjcf.from_path(str(asset("pedestrian.xml")))
+        self._mjcf_root.model = name
+        self._geom = self._mjcf_root.find("geom", "body")
+        self._geom.size = (radius, height / 2)
+        self._geom.pos = (0, 0, height / 2)
 
     @property
     def mjcf_model(self) -> mjcf.RootElement:

@@ -36,6 +36,7 @@ MuJoCo has no acceleration state: :attr:`OmniRobot.acceleration` (the reference 
 from __future__ import annotations
 
 import functools
+import re
 
 import mujoco
 import numpy as np
@@ -43,12 +44,16 @@ from dm_control import composer, mjcf
 
 from mjnav.control.dynamics import clamp, integrate, tracking_force, transition_matrices
 from mjnav.geometry.raycast import beam_angles
+from mjnav.resources import asset
 from mjnav.schema import LidarConfig, RobotConfig
 
 __all__ = ["ROBOT_CONTYPE", "OmniRobot", "integrator_value", "plan_substeps"]
 
 #: The robot is the only geom with a contype bit; scene geoms have conaffinity 1.
 ROBOT_CONTYPE = 1
+#: Beams of the rangefinders in ``assets/robot.xml`` (other counts are built here).
+_ASSET_BEAMS = 360
+_RAY_LINE = re.compile(r'^ *<(?:site|rangefinder) name="ray_\d+"[^>]*/>\n', re.MULTILINE)
 
 
 class OmniRobot(composer.Entity):
@@ -69,38 +74,22 @@ class OmniRobot(composer.Entity):
         self._config = config
         self._gains = (config.mass, config.kv, config.kp, config.force_max)  # read every substep
         self._lidar = lidar
-        self._mjcf_root = mjcf.RootElement(model=name)
-        self._body = self._mjcf_root.worldbody.add("body", name="base", pos=(0, 0, lidar.height))
-        self._body.add("inertial", pos=(0, 0, 0), mass=config.mass,
-                       diaginertia=np.full(3, 0.5 * config.mass * config.radius**2))
-        self._joints = [self._body.add("joint", name=axis, type="slide", axis=vec, damping=0, armature=0)
-                        for axis, vec in (("x", (1, 0, 0)), ("y", (0, 1, 0)))]
-        self._geom = self._body.add("geom", name="disc", type="cylinder", rgba=(0.15, 0.45, 0.85, 1),
-                                    size=(config.radius, config.height / 2), contype=ROBOT_CONTYPE,
-                                    conaffinity=0)
-        self._actuators = [
-            self._mjcf_root.actuator.add("motor", name=f"force_{j.name}", joint=j, gear=(1,),
-                                         ctrllimited=True, ctrlrange=(-config.force_max, config.force_max))
-            for j in self._joints
-        ]
-        self._sites, self._sensors = self._add_rangefinders(lidar) if rangefinders else ([], [])
-        self._camera = self._body.add("camera", name="follow", pos=(0, -4.0, 6.0),
-                                      xyaxes=(1, 0, 0, 0, 0.83, 0.55))
+        asset_rays = rangefinders and lidar.beams == _ASSET_BEAMS
+        self._mjcf_root = _load_mjcf(config, lidar, name, asset_rays)
+        self._body = self._mjcf_root.find("body", "base")
+        self._joints = [self._mjcf_root.find("joint", axis) for axis in ("x", "y")]
+        self._geom = self._mjcf_root.find("geom", "disc")
+        self._actuators = [self._mjcf_root.find("actuator", f"force_{axis}") for axis in ("x", "y")]
+        self._sites, self._sensors = (
+            (self._body.find_all("site"), list(self._mjcf_root.sensor.rangefinder)) if asset_rays
+            else _add_rangefinders(self._mjcf_root, self._body, lidar) if rangefinders else ([], []))
+        self._camera = self._mjcf_root.find("camera", "follow")
         self._cache_model = None
         self._views: tuple = (None,)  # (MjData, qpos, qvel, ctrl) of the data last tracked
         self._x = np.zeros((4, 2))  # reference rows p, v, a, jerk; _p, _v, _a, _j are views of them
         self._p, self._v, self._a, self._j = self._x
         self._plan_out: np.ndarray | None = None  # (3n, 2) plan rows, reused every period
         self.reset_reference(np.zeros(2))
-
-    def _add_rangefinders(self, lidar: LidarConfig) -> tuple[list, list]:
-        sites, sensors = [], []
-        for i, angle in enumerate(beam_angles(lidar.beams)):
-            site = self._body.add("site", name=f"ray_{i:03d}", size=(0.005,), group=4,
-                                  zaxis=(np.cos(angle), np.sin(angle), 0.0))
-            sites.append(site)
-            sensors.append(self._mjcf_root.sensor.add("rangefinder", name=f"ray_{i:03d}", site=site))
-        return sites, sensors
 
     # ------------------------------------------------------------------ properties
     @property
@@ -363,3 +352,36 @@ def integrator_value(name: str) -> int:
     if name not in table:
         raise ValueError(f"integrator {name!r}: use one of {sorted(table)}")
     return int(table[name])
+
+
+@functools.cache
+def _robot_xml(with_rays: bool) -> str:
+    """The text of ``assets/robot.xml``, without its ray sites and rangefinders unless ``with_rays``
+    (dropping the lines is 20x faster than removing 720 parsed elements)."""
+    text = asset("robot.xml").read_text(encoding="utf-8")
+    return text if with_rays else _RAY_LINE.sub("", text)
+
+
+def _load_mjcf(config: RobotConfig, lidar: LidarConfig, name: str, with_rays: bool) -> mjcf.RootElement:
+    """``assets/robot.xml`` with the config's model name, LiDAR height, mass, disc size and force limit (SI)."""
+    root = mjcf.from_xml_string(_robot_xml(with_rays), model_dir=str(asset("robot.xml").parent))
+    root.model = name
+    root.find("body", "base").pos = (0, 0, lidar.height)
+    inertial = root.find("body", "base").inertial
+    inertial.mass = config.mass
+    inertial.diaginertia = np.full(3, 0.5 * config.mass * config.radius**2)
+    root.find("geom", "disc").size = (config.radius, config.height / 2)
+    for axis in ("x", "y"):
+        root.find("actuator", f"force_{axis}").ctrlrange = (-config.force_max, config.force_max)
+    return root
+
+
+def _add_rangefinders(root: mjcf.RootElement, body: mjcf.Element, lidar: LidarConfig) -> tuple[list, list]:
+    """Ray sites (before the camera, as in the asset) and rangefinders for ``lidar.beams`` beams."""
+    position = body.all_children().index(root.find("camera", "follow"))
+    sites, sensors = [], []
+    for i, angle in enumerate(beam_angles(lidar.beams)):
+        sites.append(body.insert("site", position + i, name=f"ray_{i:03d}", size=(0.005,), group=4,
+                                 zaxis=(np.cos(angle), np.sin(angle), 0.0)))
+        sensors.append(root.sensor.add("rangefinder", name=f"ray_{i:03d}", site=sites[-1]))
+    return sites, sensors

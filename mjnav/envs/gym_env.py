@@ -37,7 +37,7 @@ Version History:
     v2 (2026-12-06, ``mjnav/StageK-v2`` next to each v1 id; v1 unchanged): bounded spaces for
     standard RL clients (Stable-Baselines3, Gymnasium's ``RescaleAction``): actions
     ``Box(-1, 1)`` = 2·(α_s, β_s, α_l, β_l) − 1, observations within bounds from the config;
-    the same episodes as v1 (:mod:`mjnav.envs.bounded`, ``docs/envs.md``).
+    the same episodes as v1 (:mod:`mjnav.envs.bounded`; the env card of the documentation).
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ Accepted specs:
   (``train.policy.actor_activations``) or the spec's (relu, relu, hardswish);
 * a run directory (``runs/<name>`` or just ``<name>`` under ``runs/``): its ``policy.pt``, else
   its latest checkpoint;
+* a shipped policy's name (``stage6_policy``; ``stage5_policy.weights`` for its weights-only
+  checkpoint), looked up and checksum-checked in ``policies/manifest.yaml`` (:mod:`mjnav.shipped`);
 * a baseline name: ``mpc_goal``, ``teb``, ``dwa``, ``random_jerk`` (planners, see
   :mod:`mjnav.planners`) or ``random`` (random raw actions through the learned action path).
 

@@ -47,6 +47,7 @@ from mjnav.eval.metrics import (
 )
 from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
+from mjnav import shipped
 from mjnav.schema import ConfigError
 
 __all__ = [
@@ -77,7 +78,7 @@ if TYPE_CHECKING:
 HELD_OUT_BASE = 2**32
 #: Offset of the scenarios the baselines are tuned on (``scripts/evaluate.py seed_offset=1000000000
 #: planner.KEY=VALUE``): a billion scenarios past the evaluation sets (offset 0) and the
-#: development sets of ``docs/results.md`` (offsets 5,000,000 and 6,000,000), so no parameter is
+#: development sets of the results page (offsets 5,000,000 and 6,000,000), so no parameter is
 #: ever chosen on a scenario a results table reports.
 TUNING_SEED_OFFSET = 1_000_000_000
 #: Seed of the untimed warm-up steps of each worker (neither a training nor a held-out seed).
@@ -643,7 +644,7 @@ def _atomic_write(path: Path, text: str) -> None:
 def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     """First 16 hex digits of the SHA-256 of what a policy spec acts with.
 
-    A policy file: its bytes. A baseline with parameters (``teb``, ``dwa``): its resolved parameters
+    A policy file or shipped policy name: the file's bytes. A baseline with parameters (``teb``, ``dwa``): its resolved parameters
     (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
     None for other baselines and run names.
     """
@@ -652,8 +653,8 @@ def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     if spec in PLANNERS and PLANNERS.get(spec).config_class is not None:
         text = json.dumps(dataclasses.asdict(planner_config(spec, planner)), sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
-    path = Path(spec)
-    if not path.is_file():
+    path = Path(spec) if Path(spec).is_file() else shipped.resolve(spec)
+    if path is None or not path.is_file():
         return None
     return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
 

@@ -8,9 +8,11 @@ held-out scenarios each, the policy's own training config plus ``collision=scan`
 ``collision=contact``), and prints one row per method and stage: our success under the paper's
 collision rule (shrunk scan ≤ 0) and under MuJoCo contacts, each with a 95 % Wilson interval, the
 paper's success, and time / distance / speed over the successful episodes under the paper's rule.
-A method whose policy file does not exist is listed as "not trained", never estimated.
-``action=mean`` (default, spec §8) acts on the policy's mean through the shipped ``*_policy.pt`` /
-``*.pt``; ``action=sample`` samples its Gaussian through the shipped ``*_checkpoint.pt``.
+A method whose policy is not shipped (or whose file does not exist) is listed as "not trained",
+never estimated. ``action=mean`` (default, spec §8) acts on the policy's mean through the shipped
+actor (``policies/manifest.yaml``, :mod:`mjnav.shipped`); ``action=sample`` / ``expected`` use its
+Gaussian through the shipped weights-only checkpoint (``NAME.weights``; "not trained" where none
+is shipped) or, for a path, the ``*_checkpoint.pt`` beside it.
 
 Files: ``<out>/<method slug>/<stage>_<rule>[_<action>].jsonl`` (the evaluation runner's JSONL;
 a policy shared by two tables is evaluated once). A file with more episodes than requested answers
@@ -33,6 +35,7 @@ from typing import Any
 
 from mjnav.eval.intervals import wilson
 from mjnav.eval.social import aggregate_social
+from mjnav import shipped
 from mjnav.eval.runner import read_jsonl as load_rows
 
 __all__ = ["TABLES", "Method", "Table", "format_social", "format_strata", "format_table", "load_rows",
@@ -48,8 +51,8 @@ class Method:
 
     Attributes:
         name: As the paper names it (``Ours``, ``Design 1``, ``r_t2``, ``TEB``).
-        policy: Policy spec, ``{stage}`` filled in per stage: a shipped file (missing = "not
-            trained") or a baseline name (``teb``).
+        policy: Policy spec, ``{stage}`` filled in per stage: a shipped policy's name
+            (``stage6_policy``), a file (missing = "not trained") or a baseline name (``teb``).
         slug: Folder of its evaluations under ``out``; methods that evaluate the same policy share
             it (``Ours`` of Table IV is ``r_t1`` of Table III).
         paper: Stage -> the paper's (success %, time s, distance m, speed m/s[, Total Abs Acc]).
@@ -76,30 +79,30 @@ _OURS_CROWD = {"stage5": (87.1, 2.9, 4.59, 1.57, 26475.46), "stage6": (78.1, 2.9
 #: The paper's tables II-IV (spec §11): methods, their shipped policies, the paper's numbers.
 TABLES: dict[int, Table] = {
     2: Table(("stage2", "stage3", "stage4"), (
-        Method("Design 1", "docs/policies/stage4_design1.pt", "design1",
+        Method("Design 1", "stage4_design1", "design1",
                {"stage2": (76, 4.0, 11.28, 2.87), "stage3": (79.9, 4.0, 11.37, 2.9),
                 "stage4": (80.9, 3.9, 11.25, 2.95)}),
-        Method("Design 2", "docs/policies/stage4_design2.pt", "design2",
+        Method("Design 2", "stage4_design2", "design2",
                {"stage2": (76, 4.0, 11.11, 2.8), "stage3": (79,), "stage4": (75.1,)}),
-        Method("Design 3", "docs/policies/stage4_design3.pt", "design3",
+        Method("Design 3", "stage4_design3", "design3",
                {"stage2": (90.3, 9.0, 15.26, 1.72), "stage3": (87.8, 8.8, 15.42, 1.77), "stage4": (84.5,)}),
-        Method("Design 4", "docs/policies/stage4_design4.pt", "design4",
+        Method("Design 4", "stage4_design4", "design4",
                {"stage2": (83, 5.0, 11.66, 2.23), "stage3": (83.5, 4.9, 11.59, 2.24), "stage4": (83.7,)}),
-        Method("Ours", "docs/policies/{stage}_policy.pt", "ours",
+        Method("Ours", "{stage}_policy", "ours",
                {"stage2": (89.2, 5.5, 12.19, 2.18), "stage3": (89.1, 5.9, 13.04, 2.17),
                 "stage4": (85.5, 5.8, 12.51, 2.1)}),
     )),
     3: Table(("stage5", "stage6", "stage7"), (
-        Method("r_t1", "docs/policies/{stage}_policy.pt", "ours", _OURS_CROWD),
+        Method("r_t1", "{stage}_policy", "ours", _OURS_CROWD),
         # the ablation's own r_t1: trained by the same protocol and budget as r_t2-r_t4
-        Method("r_t1 (ablation run)", "docs/policies/stage7_r_t1.pt", "r_t1", _OURS_CROWD),
-        Method("r_t2", "docs/policies/stage7_r_t2.pt", "r_t2",
+        Method("r_t1 (ablation run)", "stage7_r_t1", "r_t1", _OURS_CROWD),
+        Method("r_t2", "stage7_r_t2", "r_t2",
                {"stage5": (87.8, 2.9, 4.65, 1.57, 27600.56), "stage6": (77.3, 2.8, 4.10, 1.43, 20397.66),
                 "stage7": (69.9, 3.0, 4.15, 1.37, 7218.53)}),
-        Method("r_t3", "docs/policies/stage7_r_t3.pt", "r_t3",
+        Method("r_t3", "stage7_r_t3", "r_t3",
                {"stage5": (84.8, 3.4, 4.38, 1.40, 27781.34), "stage6": (73.1, 3.4, 3.85, 1.25, 21988.81),
                 "stage7": (67.1, 3.6, 3.98, 1.19, 6080.69)}),
-        Method("r_t4", "docs/policies/stage7_r_t4.pt", "r_t4",
+        Method("r_t4", "stage7_r_t4", "r_t4",
                {"stage5": (86.7, 2.9, 4.65, 1.58, 26460.66), "stage6": (74.6, 3.0, 4.35, 1.46, 19950.77),
                 "stage7": (65.3, 2.9, 3.88, 1.36, 5668.30)}),
     ), abs_acc=True),
@@ -107,7 +110,7 @@ TABLES: dict[int, Table] = {
         Method("TEB", "teb", "teb",
                {"stage5": (77.1, 4.4, 4.64, 1.11), "stage6": (65.2, 4.0, 4.21, 1.10),
                 "stage7": (57.8, 3.8, 3.87, 1.07)}),
-        Method("Ours", "docs/policies/{stage}_policy.pt", "ours", {k: v[:4] for k, v in _OURS_CROWD.items()}),
+        Method("Ours", "{stage}_policy", "ours", {k: v[:4] for k, v in _OURS_CROWD.items()}),
     )),
 }
 
@@ -207,7 +210,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
             policy = method.policy if baseline else _policy_file(method.policy.format(stage=stage), mode)
             row: dict[str, Any] = {"stage": stage, "method": method.name, "policy": policy,
                                    "paper": method.paper.get(stage, ()), "mode": "–" if baseline else mode}
-            if not baseline and not Path(policy).is_file():
+            if not baseline and (policy is None or shipped.find(policy) is None and not Path(policy).is_file()):
                 rows.append({**row, "status": "not trained"})
                 continue
             for rule in ("contact", "scan"):  # the contact run settles most episodes of the paper's rule
@@ -265,10 +268,13 @@ def _chosen_methods(table: Table, names: Sequence[str] | None) -> tuple[Method, 
     return tuple(m for m in table.methods if m.name in names)
 
 
-def _policy_file(policy: str, action: str) -> str:
-    """The shipped file to load: the exported actor for the mean, the checkpoint for sampling."""
+def _policy_file(policy: str, action: str) -> str | None:
+    """What to load: the actor for the mean; for sampling a shipped policy's ``NAME.weights`` (None
+    where it ships none) or the ``*_checkpoint.pt`` beside a file."""
     if action == "mean":
         return policy
+    if policy in shipped.names():
+        return f"{policy}{shipped.WEIGHTS_SUFFIX}" if shipped.get(policy).weights else None
     path = Path(policy)
     return str(path.with_name(f"{path.stem.removesuffix('_policy')}_checkpoint.pt"))
 

@@ -9,7 +9,7 @@ scaled down for a 2-core CPU where they are not:
   and collapsed with more steps (measured when the issue was filed: return down to -190 near
   2.4M steps, 34.7 % held-out success at 4M);
   with 16,384 per update stochastic training success rose steadily (0.99 by 1.1M steps on
-  stage 2) and held (``docs/results.md``). More environments per adapter step share its fixed
+  stage 2) and held (the results page). More environments per adapter step share its fixed
   costs (the hand-off to the worker process, the wait for the slower half, rsl-rl's actor and
   critic forward passes), so 64 environments are kept; the longer rollout costs nothing per step.
 * update: 5 epochs x 4 minibatches of 4,096 = 20 gradient steps per iteration (the authors: 16
@@ -34,6 +34,7 @@ from typing import Any, Literal
 
 from mjnav.schema import apply_overrides
 from mjnav.schema import check as _check
+from mjnav.stages import stage_numbers
 
 __all__ = ["CurriculumConfig", "PolicyConfig", "TrainConfig", "load_train"]
 
@@ -74,8 +75,9 @@ class CurriculumConfig:
     """Stage promotion (spec §9, proposal).
 
     Attributes:
-        first_stage: Stage the curriculum starts at (1-7).
-        last_stage: Stage the curriculum ends with.
+        first_stage: Stage number the curriculum starts at (0: the first ``stage<N>`` in the tasks
+            folder, :func:`mjnav.stages.stage_numbers`, when walked; :meth:`stages`).
+        last_stage: Stage number the curriculum ends with (0: the last in the tasks folder).
         threshold: Promote when the deterministic success rate reaches this.
         eval_episodes: Episodes per deterministic evaluation.
         eval_interval: Training iterations between evaluations.
@@ -84,8 +86,8 @@ class CurriculumConfig:
             training environments; not the held-out scenarios of ``scripts/evaluate.py``).
     """
 
-    first_stage: int = 1
-    last_stage: int = 7
+    first_stage: int = 0
+    last_stage: int = 0
     threshold: float = 0.9
     eval_episodes: int = 100
     eval_interval: int = 50
@@ -93,7 +95,20 @@ class CurriculumConfig:
     eval_seed_offset: int = 1_000_000
 
     def __post_init__(self) -> None:
-        _check(1 <= self.first_stage <= self.last_stage <= 7, "first_stage", "needs 1 <= first <= last <= 7")
+        numbers = stage_numbers()
+        for name in ("first_stage", "last_stage"):
+            value = getattr(self, name)
+            _check(value == 0 or value in numbers, name,
+                   f"no stage{value} in the tasks folder (stages: {', '.join(map(str, numbers))})")
+        _check(self.first_stage == 0 or self.last_stage == 0 or self.first_stage <= self.last_stage,
+               "first_stage", "needs first_stage <= last_stage")
+
+    def stages(self) -> list[int]:
+        """The stage numbers walked, in order: the tasks folder's from first to last (0 = either end)."""
+        numbers = stage_numbers()
+        first, last = self.first_stage or numbers[0], self.last_stage or numbers[-1]
+        return [n for n in numbers if first <= n <= last]
+
         _check(0.0 < self.threshold <= 1.0, "threshold", "must be in (0, 1]")
         _check(self.eval_episodes >= 1 and self.eval_interval >= 1, "eval_episodes", "must be >= 1")
         _check(self.stage_steps >= 1, "stage_steps", "must be >= 1")

@@ -1,4 +1,5 @@
-"""Stage curriculum (spec §9, proposal): stage1 -> stage7.
+"""Stage curriculum (spec §9, proposal): the numbered stages of the tasks folder in order
+(stage1 -> stage7 today; :func:`mjnav.stages.stage_numbers`).
 
 Training on a stage is interrupted every ``eval_interval`` iterations for a deterministic
 evaluation over ``eval_episodes`` episodes in separately seeded environments (base seed offset by
@@ -20,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import yaml
 from rsl_rl.runners import OnPolicyRunner
 
-from mjnav.config import load_task
+from mjnav import stages
 from mjnav.envs.vec_env import NavVecEnv
 from mjnav.train.config import TrainConfig
 from mjnav.train.evaluate import EvalResult, evaluate
@@ -36,13 +37,13 @@ STATE_FILE = "curriculum.yaml"
 
 
 def stage_name(stage: int) -> str:
-    """Bundled task name of a stage number (``3`` -> ``stage3``)."""
-    return f"stage{stage}"
+    """Task name of a stage number (``3`` -> ``stage3``), checked against the tasks folder."""
+    return stages.stage_name(stage)
 
 
 def load_stage(name: str, overrides: list[str]) -> TaskConfig:
-    """:func:`mjnav.config.load_task` of the stage ``name`` with dotted ``overrides``."""
-    return load_task(name, overrides)
+    """:func:`mjnav.stages.load_stage`: the stage of that name with dotted overrides."""
+    return stages.load_stage(name, overrides)
 
 
 @dataclasses.dataclass
@@ -155,9 +156,10 @@ def _train_stage(
         _record(state, runner.current_learning_iteration, steps, result, decision)
         if decision is not None:
             save_checkpoint(runner, run_dir)
-            state.finished = state.stage >= cfg.last_stage
+            following = stages.next_stage(state.stage)
+            state.finished = following is None or following not in cfg.stages()
             if not state.finished:
-                state.stage, state.stage_start = state.stage + 1, runner.current_learning_iteration
+                state.stage, state.stage_start = following, runner.current_learning_iteration
         state.save(run_dir)
         if decision is not None:
             return

@@ -5,7 +5,9 @@ as ``train.seed=``), in the grammar of :mod:`mjnav.args`; ``mjnav train --help``
 
 Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
 configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
-runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed).
+runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed) and
+``checkpoint_weights.pt`` (actor with its std and critic, no optimizer state: ~2.3 MB, what a
+shipped policy adds besides its actor; ``init=`` and ``start=auto`` take it).
 """
 
 from __future__ import annotations
@@ -21,8 +23,10 @@ from typing import Any
 
 import yaml
 
+from mjnav import shipped
 from mjnav.args import Grammar, parse
 from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
+from mjnav.stages import stage_numbers
 from mjnav.train import curriculum as stages
 from mjnav.train.config import TrainConfig, load_train
 from mjnav.train.curriculum import CurriculumState, run_curriculum, stage_name
@@ -36,6 +40,7 @@ from mjnav.train.runner import (
     load_checkpoint,
     make_vec_env,
     save_checkpoint,
+    save_weights,
 )
 
 __all__ = [
@@ -44,8 +49,6 @@ __all__ = [
 ]
 
 START_MODES = ("auto", "shipped", "curriculum", "scratch")
-#: Shipped policies of a source checkout (absent from an installed wheel: ``start=auto`` then walks the curriculum).
-SHIPPED_POLICIES = Path(__file__).resolve().parents[2] / "docs" / "policies"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,6 +63,7 @@ class RunArgs:
     curriculum: bool = False
     out: str = "runs"
     start: str = "auto"
+    recipe: str | None = None
 
 
 @dataclasses.dataclass
@@ -90,6 +94,8 @@ class TrainOptions:
         start: Where a new run on stage K starts: ``shipped`` (the shipped stage K-1 policy),
             ``curriculum`` (walk stage 1 -> K), ``scratch`` or ``auto`` (shipped, else curriculum
             for K >= 2, else scratch); init=/resume=/curriculum=true win.
+        recipe: Retrain this shipped policy from its recipe (``tasks/recipes/NAME.yaml``: task, task
+            overrides, PPO settings, the shipped weights it starts from); task./train. keys win.
     """
 
     task: str | None = None
@@ -98,6 +104,7 @@ class TrainOptions:
     curriculum: bool = False
     out: str = "runs"
     start: str = "auto"
+    recipe: str | None = None
 
 
 def grammar() -> Grammar:
@@ -135,27 +142,36 @@ def curriculum_iterations(train: TrainConfig) -> int:
 
     A curriculum stops at ``train.iterations``; without ``train.iterations=`` on the command line
     the cap is this, so ``curriculum=true`` walks to ``last_stage`` even if no stage is promoted
-    early (e.g. 7 stages × ceil(3M / 16,384) = 1,288 iterations with the defaults).
+    early (e.g. 7 stages × ceil(3M / 16,384) = 1,288 iterations with the defaults and stage1..stage7).
     """
     cfg = train.curriculum
     per_stage = math.ceil(cfg.stage_steps / (train.num_envs * train.steps_per_env))
-    return (cfg.last_stage - cfg.first_stage + 1) * per_stage
+    return len(cfg.stages()) * per_stage
 
 
 def _stage_number(task: str | None) -> int | None:
-    """``3`` for the bundled ``stage3``; None for anything else (a YAML path)."""
+    """``3`` for the numbered stage ``stage3`` of the tasks folder; None for anything else (a YAML path)."""
     if task is None or not task.startswith("stage") or not task[5:].isdigit():
         return None
-    return int(task[5:]) if 1 <= int(task[5:]) <= 7 else None
+    return int(task[5:]) if int(task[5:]) in stage_numbers() else None
 
 
-def shipped_checkpoint(stage: int, root: Path | None = None) -> Path | None:
-    """``<root>/stage<stage>_checkpoint.pt`` (root: :data:`SHIPPED_POLICIES`) if it exists."""
-    path = (root or SHIPPED_POLICIES) / f"stage{stage}_checkpoint.pt"
-    return path if path.is_file() else None
+def shipped_checkpoint(stage: int) -> Path | None:
+    """The weights-only checkpoint of stage ``stage``'s shipped policy (checked), or None where none is shipped.
+
+    Raises:
+        mjnav.shipped.ShippedError: The file is missing or its checksum does not match.
+    """
+    entry = shipped.stage_policy(f"stage{stage}") if stage in stage_numbers() else None
+    return entry.weights_path() if entry is not None and entry.weights else None
 
 
-def resolve_start(args: RunArgs, root: Path | None = None) -> str:
+def _previous(stage: int) -> int:
+    """The numbered stage before ``stage`` (0 for the first)."""
+    return max((n for n in stage_numbers() if n < stage), default=0)
+
+
+def resolve_start(args: RunArgs) -> str:
     """How a new run begins: ``init`` (init= given), ``curriculum`` (curriculum=true or a walk to
     stage K), ``shipped`` (the previous stage's shipped checkpoint) or ``scratch``.
 
@@ -169,12 +185,13 @@ def resolve_start(args: RunArgs, root: Path | None = None) -> str:
             raise ConfigError("start: cannot be combined with init= or curriculum=true")
         return "init" if args.init is not None else "curriculum"
     stage = _stage_number(args.task)
-    if explicit and args.start != "scratch" and (stage is None or stage < 2):
-        raise ConfigError(f"start={args.start}: needs a bundled stage2..stage7 task, got {args.task!r}")
-    if args.start == "shipped" and shipped_checkpoint(stage - 1, root) is None:
-        raise ConfigError(f"start=shipped: no stage{stage - 1}_checkpoint.pt in {root or SHIPPED_POLICIES}")
-    if args.start in ("auto", "shipped") and stage is not None and stage >= 2:
-        found = shipped_checkpoint(stage - 1, root)
+    if explicit and args.start != "scratch" and (stage is None or _previous(stage) == 0):
+        raise ConfigError(f"start={args.start}: needs a numbered stage after stage1 (stage2, ...), got {args.task!r}")
+    previous = _previous(stage) if stage is not None else 0
+    if args.start == "shipped" and shipped_checkpoint(previous) is None:
+        raise ConfigError(f"start=shipped: no shipped stage{previous} policy with weights (policies/manifest.yaml)")
+    if args.start in ("auto", "shipped") and stage is not None and _previous(stage) > 0:
+        found = shipped_checkpoint(_previous(stage))
         if found is not None and not _same_design(found, args):
             if explicit:
                 raise ConfigError(f"start=shipped: {found} was trained with another task.design (its network "
@@ -182,33 +199,33 @@ def resolve_start(args: RunArgs, root: Path | None = None) -> str:
             return "curriculum"
     if explicit:
         return args.start
-    if stage is None or stage < 2:
+    if stage is None or _previous(stage) == 0:
         return "scratch"
-    return "shipped" if shipped_checkpoint(stage - 1, root) else "curriculum"
+    return "shipped" if shipped_checkpoint(_previous(stage)) else "curriculum"
 
 
 def _same_design(checkpoint: Path, args: RunArgs) -> bool:
     """The shipped checkpoint's design (observation and action sizes) is the one requested."""
     from mjnav.policy import training_overrides
 
-    shipped = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
+    trained = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
     overrides = [*training_overrides(checkpoint), *args.task_overrides]
     wanted = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
-    return shipped.design == wanted.design
+    return trained.design == wanted.design
 
 
-def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
-    """Resolve configs, run folder and checkpoint of a fresh or resumed run (creates nothing).
-
-    ``root``: where shipped policies are looked up (default :data:`SHIPPED_POLICIES`).
-    """
+def plan_run(args: RunArgs) -> RunPlan:
+    """Resolve configs, run folder and checkpoint of a fresh or resumed run (creates nothing)."""
     if args.resume is not None:
-        if args.start != "auto":
-            raise ConfigError("start: cannot be combined with resume=")
+        if args.start != "auto" or args.recipe is not None:
+            raise ConfigError("start: cannot be combined with resume=" if args.recipe is None else
+                              "recipe: cannot be combined with resume=")
         return _plan_resume(args)
+    if args.recipe is not None:
+        return _plan_recipe(args)
     if args.task is None and not args.curriculum:
         raise ConfigError("task: required (task=stage6), unless resume=RUN_DIR or curriculum=true")
-    start = resolve_start(args, root)
+    start = resolve_start(args)
     train = load_train(list(args.train_overrides))
     overrides = list(args.task_overrides)
     given_iterations = any(o.startswith("iterations=") for o in args.train_overrides)
@@ -217,56 +234,54 @@ def plan_run(args: RunArgs, root: Path | None = None) -> RunPlan:
     if start == "curriculum":
         if not args.curriculum:  # a walk up to the requested stage
             last = _stage_number(args.task)
-            train = apply_overrides(train, ["curriculum.first_stage=1", f"curriculum.last_stage={last}"])
+            train = apply_overrides(train, [f"curriculum.first_stage={stage_numbers()[0]}",
+                                            f"curriculum.last_stage={last}"])
         if not given_iterations:
             train = apply_overrides(train, [f"iterations={curriculum_iterations(train)}"])
-        state = CurriculumState(stage=train.curriculum.first_stage)
+        state = CurriculumState(stage=train.curriculum.stages()[0])
         task, label = stages.load_stage(stage_name(state.stage), overrides), "curriculum"
     else:
         if start == "shipped":
-            from mjnav.policy import training_overrides
-
-            previous = _stage_number(args.task) - 1  # type: ignore[operator]
-            init = _check_init(shipped_checkpoint(previous, root))  # type: ignore[arg-type]
-            overrides = [*training_overrides(init), *overrides]
-            recipe = _shipped_recipe(init, args.train_overrides)
-            if recipe is not None:
-                train = recipe
-            elif not given_iterations:  # one stage budget
-                steps = train.num_envs * train.steps_per_env
-                train = apply_overrides(train, [f"iterations={math.ceil(train.curriculum.stage_steps / steps)}"])
+            entry = shipped.stage_policy(stage_name(_previous(_stage_number(args.task))))  # type: ignore[arg-type]
+            recipe = shipped.load_recipe(entry.recipe)  # type: ignore[union-attr]
+            init = _check_init(entry.weights_path())  # type: ignore[union-attr]
+            overrides = [*recipe.task_overrides, *overrides]
+            train = load_train([*recipe.train_overrides(), *args.train_overrides])
         task = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
         label = task.name
     run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
     return RunPlan(run_dir, task, train, overrides, state, init=init, start=start)
 
 
-#: Settings of the machine a run happened to use, not of its recipe: a shipped config's values are not inherited.
-MACHINE_SETTINGS = ("workers", "start_method", "device", "torch_threads", "update_threads", "verbose")
+def _plan_recipe(args: RunArgs) -> RunPlan:
+    """A retrain of a shipped policy from its recipe (``recipe=NAME``); the command's task./train. overrides win.
 
-
-def _shipped_recipe(checkpoint: Path, train_overrides: Sequence[str]) -> TrainConfig | None:
-    """The PPO config the shipped checkpoint was trained with (its ``NAME_config.yaml``: learning
-    rate schedule, batch, iterations, ...) but :data:`MACHINE_SETTINGS`, then the command's
-    ``train.*`` overrides; None without that file."""
-    from mjnav.policy import policy_config
-
-    path = policy_config(checkpoint)
-    if path is None:
-        return None
-    saved = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    if not isinstance(saved.get("train"), dict):
-        return None
-    recipe = {k: v for k, v in saved["train"].items() if k not in MACHINE_SETTINGS}
-    return load_train(list(train_overrides), base=from_dict(TrainConfig, recipe))
+    Raises:
+        ConfigError: Unknown recipe, or combined with task=/init=/curriculum=true/start=.
+    """
+    if args.init is not None or args.curriculum or args.start != "auto" or args.task is not None:
+        raise ConfigError("recipe: sets the task and the start; cannot be combined with task=, init=, "
+                          "curriculum=true or start=")
+    try:
+        recipe = shipped.load_recipe(args.recipe)  # type: ignore[arg-type]
+        init = _check_init(shipped.get(recipe.start).weights_path()) if recipe.start else None
+    except shipped.ShippedError as err:
+        raise ConfigError(f"recipe: {err}") from None
+    overrides = [*recipe.task_overrides, *args.task_overrides]
+    train = load_train([*recipe.train_overrides(), *args.train_overrides])
+    task = stages.load_stage(recipe.task, overrides)
+    run_dir = Path(args.out) / f"{task.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    return RunPlan(run_dir, task, train, overrides, init=init, start="recipe")
 
 
 def _check_init(path: Path) -> Path:
     """``init=``: an rsl-rl checkpoint with actor and critic weights (checked before anything starts)."""
     import torch
 
+    path = shipped.resolve(path) or path  # a shipped NAME.weights
     if not path.is_file():
-        raise ConfigError(f"init: no such checkpoint file {str(path)!r} (expected runs/<run>/model_<it>.pt)")
+        raise ConfigError(f"init: no such checkpoint file {str(path)!r} (expected runs/<run>/model_<it>.pt, "
+                          "runs/<run>/checkpoint_weights.pt or a shipped NAME.weights)")
     try:
         state = torch.load(str(path), map_location="cpu", weights_only=False)
     except Exception as err:  # any unreadable file is the same user error
@@ -374,7 +389,7 @@ def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Pat
                   f"train.critic_warmup={train.critic_warmup} updates with the actor frozen", flush=True)
         if not _train(runner, plan, make_env):
             return plan.run_dir
-        for path in export_actor(runner.alg.get_policy(), plan.run_dir):
+        for path in (*export_actor(runner.alg.get_policy(), plan.run_dir), save_weights(runner, plan.run_dir)):
             print(f"exported {path}")
     finally:
         for vec_env in {id(env): env, id(getattr(runner, "env", env)): getattr(runner, "env", env)}.values():
@@ -413,11 +428,15 @@ def _start_line(plan: RunPlan) -> str:
     if plan.checkpoint is not None:
         return f"start: resuming {plan.run_dir} from {plan.checkpoint}"
     if plan.curriculum is not None:
-        c = t.curriculum
-        return (f"start: curriculum stage{c.first_stage} -> stage{c.last_stage} from random weights (promotion at "
+        c, walk = t.curriculum, t.curriculum.stages()
+        return (f"start: curriculum stage{walk[0]} -> stage{walk[-1]} from random weights (promotion at "
                 f"{c.threshold:.0%} deterministic success or {c.stage_steps:,} env steps per stage; "
                 f"at most {t.iterations} iterations); start=shipped|scratch to change")
     steps = t.iterations * t.num_envs * t.steps_per_env
+    if plan.start == "recipe":
+        return (f"start: the recipe of a shipped policy, {plan.init or 'random weights'} (task overrides "
+                f"{plan.task_overrides or 'none'}), {plan.task.name} for {t.iterations} iterations = "
+                f"{steps:,} env steps")
     if plan.start == "shipped":
         return (f"start: the shipped policy {plan.init} (task overrides {plan.task_overrides or 'none'}), "
                 f"{plan.task.name} for {t.iterations} iterations = {steps:,} env steps; "

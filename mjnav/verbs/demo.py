@@ -2,7 +2,7 @@
 it, export the world.
 
 No training needed: the robot uses ``mpc_goal`` (the free-space polygon + MPC heading for the goal).
-The world of that seed is exported as a standalone MJCF scene (see docs/export.md).
+The world of that seed is exported as a standalone MJCF scene (see the export page of the documentation).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """``mjnav export``: one episode as a standalone MuJoCo scene plus pedestrian trajectories
-(``DIR/scene.xml`` and ``DIR/trajectory.npz``, format in ``docs/export.md``)."""
+(``DIR/scene.xml`` and ``DIR/trajectory.npz``, format on the export page of the documentation)."""
 
 from __future__ import annotations
 

@@ -407,39 +407,38 @@ def test_session_fresh_resume_and_curriculum(tmp_path: Path, monkeypatch: pytest
     assert (run_dir / "policy.pt").exists()
 
 
-def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curriculum(tmp_path: Path) -> None:
-    """``task=stage6`` alone: the shipped stage-5 checkpoint with its training overrides and one stage
-    budget; without it, the curriculum from stage 1 up to stage 6; the choice can be forced or refused."""
-    torch.save({"actor_state_dict": {}, "critic_state_dict": {}}, tmp_path / "stage5_checkpoint.pt")
-    (tmp_path / "stage5_config.yaml").write_text("run:\n  task_overrides: [collision=scan]\n")
-    plan = session.plan_run(session.parse_args(["task=stage6", "task.crowd.count=12"]), root=tmp_path)
-    assert plan.start == "shipped" and plan.init == tmp_path / "stage5_checkpoint.pt"
+def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curriculum(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``task=stage6`` alone: the shipped stage-5 policy's weights with its recipe (task overrides, PPO
+    settings, budget); without it, the curriculum from stage 1 up to stage 6; the choice can be forced or refused."""
+    from mjnav import shipped
+
+    plan = session.plan_run(session.parse_args(["task=stage6", "task.crowd.count=12"]))
+    assert plan.start == "shipped" and plan.init == shipped.resolve("stage5_policy.weights")
     assert plan.task.collision == "scan" and plan.task.crowd.count == 12  # the command's overrides win
-    budget = plan.train.curriculum.stage_steps / (plan.train.num_envs * plan.train.steps_per_env)
-    assert plan.train.iterations == math.ceil(budget)  # no recipe in the config: one stage budget
+    recipe = shipped.load_recipe("stage5_policy")
+    assert plan.train.iterations == recipe.train["iterations"] and plan.train.schedule == "fixed"  # its recipe
     assert "shipped policy" in session._start_line(plan)
-    (tmp_path / "stage5_config.yaml").write_text(
-        "run:\n  task_overrides: [collision=scan]\ntrain:\n  iterations: 120\n  schedule: fixed\n  workers: 1\n")
-    recipe = session.plan_run(session.parse_args(["task=stage6", "train.iterations=7"]), root=tmp_path)
-    assert recipe.train.schedule == "fixed" and recipe.train.iterations == 7  # its recipe, then the command's
-    assert recipe.train.workers == -1  # how many cores that run had is not part of the recipe
-    walk = session.plan_run(session.parse_args(["task=stage6"]), root=tmp_path / "none")
-    assert walk.start == "curriculum" and walk.task.name == "stage1"
-    assert (walk.train.curriculum.first_stage, walk.train.curriculum.last_stage) == (1, 6)
-    assert "curriculum stage1 -> stage6" in session._start_line(walk)
-    scratch = session.plan_run(session.parse_args(["task=stage6", "start=scratch"]), root=tmp_path)
+    short = session.plan_run(session.parse_args(["task=stage6", "train.iterations=7", "train.workers=1"]))
+    assert short.train.iterations == 7 and short.train.workers == 1  # the recipe, then the command's
+    scratch = session.plan_run(session.parse_args(["task=stage6", "start=scratch"]))
     assert scratch.init is None and scratch.task.name == "stage6" and scratch.curriculum is None
-    assert session.plan_run(session.parse_args(["task=stage1"]), root=tmp_path).start == "scratch"
-    with pytest.raises(ConfigError, match="start=shipped: no stage6_checkpoint"):
-        session.plan_run(session.parse_args(["task=stage7", "start=shipped"]), root=tmp_path)
+    assert session.plan_run(session.parse_args(["task=stage1"])).start == "scratch"
     with pytest.raises(ConfigError, match="start: expected one of"):
         session.parse_args(["task=stage6", "start=later"])
     with pytest.raises(ConfigError, match="cannot be combined"):
-        session.plan_run(session.parse_args(["task=stage6", "start=scratch", f"init={tmp_path / 'stage5_checkpoint.pt'}"]))
-    design = session.plan_run(session.parse_args(["task=stage6", "task.design=design1"]), root=tmp_path)
+        session.plan_run(session.parse_args(["task=stage6", "start=scratch", "init=stage5_policy.weights"]))
+    design = session.plan_run(session.parse_args(["task=stage6", "task.design=design1"]))
     assert design.start == "curriculum"  # the shipped network does not fit design 1's observation
     with pytest.raises(ConfigError, match="another task.design"):
-        session.plan_run(session.parse_args(["task=stage6", "task.design=design1", "start=shipped"]), root=tmp_path)
+        session.plan_run(session.parse_args(["task=stage6", "task.design=design1", "start=shipped"]))
+    monkeypatch.setattr(shipped, "stage_policy", lambda stage: None)  # nothing shipped
+    walk = session.plan_run(session.parse_args(["task=stage6"]))
+    assert walk.start == "curriculum" and walk.task.name == "stage1"
+    assert (walk.train.curriculum.first_stage, walk.train.curriculum.last_stage) == (1, 6)
+    assert "curriculum stage1 -> stage6" in session._start_line(walk)
+    with pytest.raises(ConfigError, match="start=shipped: no shipped stage6"):
+        session.plan_run(session.parse_args(["task=stage7", "start=shipped"]))
 
 
 def test_value_clip_is_configurable() -> None:

@@ -1,9 +1,9 @@
 """Imitation warm start for Ours from mpc_gap (lab tool, not in mjnav).
 
-    python docs/policies/experiments/imitation.py teacher STAGE N SEED0            # success of the teacher acting through Ours' action layer
-    python docs/policies/experiments/imitation.py collect OUT.npz STAGES N SEED0 [STUDENT_CKPT BETA]   # (obs, target logits); DAgger if student
-    python docs/policies/experiments/imitation.py fit OUT_DIR BASE_CKPT DATA.npz [DATA2.npz ...]       # BC of the actor -> OUT_DIR/model_0.pt
-    python docs/policies/experiments/imitation.py student CKPT STAGE N SEED0       # success of the student (mean action)
+    python experiments/imitation.py teacher STAGE N SEED0            # success of the teacher acting through Ours' action layer
+    python experiments/imitation.py collect OUT.npz STAGES N SEED0 [STUDENT_CKPT BETA]   # (obs, target logits); DAgger if student
+    python experiments/imitation.py fit OUT_DIR BASE_CKPT DATA.npz [DATA2.npz ...]       # BC of the actor -> OUT_DIR/model_0.pt
+    python experiments/imitation.py student CKPT STAGE N SEED0       # success of the student (mean action)
 
 The teacher's Q_l is mpc_gap's; its action keeps (α_s, β_s) = (0.5, 0.3) (Q_s a little behind the
 robot, where it hardly moves the MPC, as the PPO policies do), so α_l ≈ 0.5 for a Q_l ahead: no

@@ -1,8 +1,8 @@
 """Outcome-verified local search with common random numbers (lab tool, not in mjnav).
 
-    python docs/policies/experiments/search.py crn CKPT STAGE SEED            # a changed action, the same crowd?
-    python docs/policies/experiments/search.py collect OUT.npz CKPT STAGE N SEED0   # search failures, label rescues
-    python docs/policies/experiments/search.py fit OUT_DIR CKPT DATA.npz [...]      # refit -> OUT_DIR/model_0.pt
+    python experiments/search.py crn CKPT STAGE SEED            # a changed action, the same crowd?
+    python experiments/search.py collect OUT.npz CKPT STAGE N SEED0   # search failures, label rescues
+    python experiments/search.py fit OUT_DIR CKPT DATA.npz [...]      # refit -> OUT_DIR/model_0.pt
 
 Why: on the crowd stages PPO's advantages are drowned by the pedestrians' random walks (the
 critic explains ~3 % more of the return even when it sees the true crowd; docs/results.md). The

@@ -1,6 +1,6 @@
 """Policy gradient with scenario groups: a critic-free baseline from common random numbers (lab tool).
 
-    python docs/policies/experiments/group_pg.py OUT_DIR CKPT STAGE ITERATIONS [SEED0]
+    python experiments/group_pg.py OUT_DIR CKPT STAGE ITERATIONS [SEED0]
 
 Why: on the crowd stages PPO's advantages are drowned by the pedestrians' random walks: the critic
 cannot predict the return, even when it sees the true crowd (docs/results.md). The pedestrians do

@@ -1,7 +1,7 @@
 """Lab diagnostic: PPO whose actor also reads the crowd's true state (not a robot's input).
 
-    python docs/policies/experiments/privileged_actor.py INIT.pt OUT_DIR K [train.py arguments...]
-    python docs/policies/experiments/privileged_actor.py eval RUN/model_N.pt EPISODES SEED_OFFSET
+    python experiments/privileged_actor.py INIT.pt OUT_DIR K [train.py arguments...]
+    python experiments/privileged_actor.py eval RUN/model_N.pt EPISODES SEED_OFFSET
 
 Question: does PPO, from a plateaued crowd policy, improve once the actor *can* see the
 pedestrians' motion? ``task.observation.critic_pedestrians=K`` already gives the critic the K
