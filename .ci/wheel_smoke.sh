@@ -55,5 +55,5 @@ mjnav-train recipe=stage6_policy train.num_envs=2 train.steps_per_env=8 train.mi
 mjnav-export task=stage6 seed=1 steps=5 out=export
 test -s export/scene.xml && test -n "$(ls runs/stage1-*/policy.pt)" && test -n "$(ls runs/stage6-*/checkpoint_weights.pt)"
 test -n "$(find "$NUMBA_CACHE_DIR" -name '*.nbi' | head -1)"
-if mjnav-train bogus=1 2>err.txt; then exit 1; fi; grep -q "^error: bogus" err.txt
+if mjnav-train bogus=1 2>err.txt; then exit 1; fi; grep -q "^error: unknown key 'bogus'" err.txt
 echo "wheel smoke test passed"
