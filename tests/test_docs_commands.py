@@ -14,6 +14,8 @@ Placeholders the pages may use (the convention this test reads them by):
 * ``...`` as a token: "more keys"; dropped.
 * An upper-case value (``policy=P``, ``run=RUN_DIR``, ``out=DIR``) or one with ``<...>``
   (``policy=runs/<run>/policy.pt``): a value the reader fills in; text fields take it as written.
+* ``<verb>`` (any ``<word>`` where a verb or sub-verb goes: ``mjnav bench <name> --help``): each
+  verb there; followed by ``--help <section>``, each one that takes config keys.
 * ``{stage}`` in a policy name stands for each stage of the command (``policies={stage}_policy``).
 
 The lines are parsed, never run: each verb's ``run`` is replaced by a check that parses the
@@ -212,29 +214,36 @@ def check(argv: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
     assert exit_.value.code in (0, None), f"{' '.join(argv)}: exit code {exit_.value.code}"
 
 
-def leaf_verbs(verbs: dict[str, cli.Verb] = cli.VERBS) -> list[list[str]]:
-    """The words of every runnable verb (``["plot", "episode"]``, ``["train"]``)."""
+def _leaf_words(verbs: dict[str, cli.Verb]) -> list[list[str]]:
+    """The words of every runnable verb under ``verbs`` (``["plot", "episode"]``, ``["train"]``)."""
     return [[name, *rest] for name, verb in verbs.items()
-            for rest in (leaf_verbs(dict(verb.subverbs)) if verb.subverbs else [[]])]
+            for rest in (_leaf_words(dict(verb.subverbs)) if verb.subverbs else [[]])]
 
 
-def _each_verb(argv: list[str]) -> list[list[str]]:
-    """``argv`` with ``<verb>`` replaced by each verb; with ``--help <section>``, each verb that
-    takes config keys (the others have no sections)."""
-    if "<verb>" not in argv:
-        return [argv]
-    i = argv.index("<verb>")
-    words = leaf_verbs()
-    if any(t in HELP_FLAGS for t in argv[i + 1:-1]):
-        words = [w for w in words if _verb(w).grammar and cli._load(_verb(w).grammar)().prefixes]
-    return [[*argv[:i], *w, *argv[i + 1:]] for w in words]
-
-
-def _verb(words: list[str]) -> cli.Verb:
+def _takes_config(words: list[str]) -> bool:
+    """Whether the verb named by ``words`` takes config keys (has sections to list)."""
     verb = cli.VERBS[words[0]]
     for word in words[1:]:
         verb = verb.subverbs[word]
-    return verb
+    return bool(cli._load(verb.grammar)().prefixes)
+
+
+def _each_verb(argv: list[str]) -> list[list[str]]:
+    """``argv`` with a ``<verb>`` (any ``<word>`` where a verb or sub-verb goes) replaced by each
+    verb there; with ``--help <section>`` after it, each such verb that takes config keys."""
+    i = 1 if argv[0] == "mjnav" else 3 if argv[:3] == ["python", "-m", "mjnav"] else None
+    if i is None:
+        return [argv]
+    verbs: dict[str, cli.Verb] = cli.VERBS
+    while i < len(argv) and argv[i] in verbs and verbs[argv[i]].subverbs:
+        verbs, i = dict(verbs[argv[i]].subverbs), i + 1
+    if i >= len(argv) or not re.fullmatch(r"<\w+>", argv[i]):
+        return [argv]
+    words = _leaf_words(verbs)
+    if any(t in HELP_FLAGS for t in argv[i + 1:-1]):
+        head = argv[1:i] if argv[0] == "mjnav" else argv[3:i]
+        words = [w for w in words if _takes_config([*head, *w])]
+    return [[*argv[:i], *w, *argv[i + 1:]] for w in words]
 
 
 ALL = [c for page in PAGES for c in commands(page)]
@@ -292,3 +301,11 @@ def test_known_bad_readme_lines_are_still_there() -> None:
     readme = {c.text for c in ALL if c.page == "README.md"}
     assert README_KNOWN_BAD <= readme, f"gone from the README: {sorted(README_KNOWN_BAD - readme)}"
 
+
+
+def test_a_verb_placeholder_stands_for_each_verb_there() -> None:
+    """``mjnav bench <name> --help`` is each benchmark; ``mjnav <verb> --help task.crowd`` each verb with sections."""
+    assert [a[2] for a in _each_verb(["mjnav", "bench", "<name>", "--help"])] == list(cli.VERBS["bench"].subverbs)
+    with_sections = _each_verb(["mjnav", "<verb>", "--help", "task.crowd"])
+    assert ["mjnav", "train", "--help", "task.crowd"] in with_sections
+    assert all(a[1:3] != ["bench", "sim"] for a in with_sections)
