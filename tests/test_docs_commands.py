@@ -16,6 +16,10 @@ Placeholders the pages may use (the convention this test reads them by):
   (``policy=runs/<run>/policy.pt``): a value the reader fills in; text fields take it as written.
 * ``<verb>`` (any ``<word>`` where a verb or sub-verb goes: ``mjnav bench <name> --help``): each
   verb there; followed by ``--help <section>``, each one that takes config keys.
+* A name the page itself registers (``PLANNERS.register("straight", ...)`` or an entry point
+  ``straight = "my_nav.planners:StraightToGoal"`` in its ``pyproject.toml`` block) is known on that
+  page: ``policy=straight``, its ``planner.<field>=`` keys and ``crowd.model=bounce`` are not looked up
+  (the "Extending mjnav" page's own test runs them).
 * ``{stage}`` in a policy name stands for each stage of the command (``policies={stage}_policy``).
 
 The lines are parsed, never run: each verb's ``run`` is replaced by a check that parses the
@@ -57,6 +61,16 @@ _COMMENT = re.compile(r"\s+#.*$")
 README_KNOWN_BAD = {
     "python scripts/plot.py ...",
 }
+
+
+_REGISTERED = re.compile(r"""\.register\(\s*"(\w+)"|^(\w+)\s*=\s*"[\w.]+:\w+"\s*$""", re.MULTILINE)
+#: Names registered by the page being checked (set per command; see the module docstring).
+_page_names: frozenset[str] = frozenset()
+
+
+def registered_names(page: Path) -> frozenset[str]:
+    """The names a page registers in its own examples (``register("x"`` calls, ``x = "m:attr"`` entry points)."""
+    return frozenset(a or b for a, b in _REGISTERED.findall(page.read_text(encoding="utf-8")))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +123,8 @@ def commands(page: Path) -> list[Command]:
     lines = page.read_text(encoding="utf-8").splitlines()
     found = [*_shell_lines(lines), *_inline_lines(lines)]
     name = page.relative_to(ROOT).as_posix()
-    return [Command(name, number, text) for number, text in sorted(found) if _START.match(text)]
+    return [Command(name, number, text) for number, text in sorted(found)
+            if _START.match(text) and text not in ("mjnav", "python -m mjnav")]  # the bare name is prose
 
 
 def variants(text: str) -> list[list[str]]:
@@ -147,9 +162,9 @@ def _check_names(options: Any) -> None:
     from mjnav.eval.tables import TABLES
     from mjnav.planners import PLANNERS
 
-    known = {"random", *shipped.names(), *PLANNERS.names(),
+    known = {"random", *_page_names, *shipped.names(), *PLANNERS.names(),
              *(f"{n}{shipped.WEIGHTS_SUFFIX}" for n in shipped.names() if shipped.get(n).weights)}
-    specs = [*str(getattr(options, "policy", "") or "").split(","), *str(getattr(options, "policies", "") or "").split(",")]
+    specs = [spec for field in ("policy", "policies") for spec in str(getattr(options, field, "") or "").split(",")]
     for spec in filter(None, specs):
         for name in {spec.replace("{stage}", stage) for stage in _stages(options)}:
             assert _placeholder(name) or name in known, f"policy {name!r}: not shipped and not a planner"
@@ -167,11 +182,12 @@ def _check_config(parsed: Parsed) -> None:
     from mjnav.planners import PLANNERS, planner_config
     from mjnav.train.config import load_train
 
+    task = [t for t in parsed.task if t.partition("=")[2] not in _page_names]
     for stage in _stages(parsed.options):
-        load_task(stage, list(parsed.task))
+        load_task(stage, task)
     load_train(list(parsed.train))
     policy = str(getattr(parsed.options, "policy", "") or "")
-    if parsed.planner:
+    if parsed.planner and policy not in _page_names:
         assert policy in PLANNERS, f"planner.* keys need policy=<planner> (got {policy!r})"
         planner_config(policy, list(parsed.planner))
 
@@ -265,6 +281,7 @@ def test_the_pages_show_commands() -> None:
 @pytest.mark.parametrize("command", [_param(c) for c in ALL])
 def test_documented_command_parses(command: Command, monkeypatch: pytest.MonkeyPatch) -> None:
     """Each documented command (each optional part and alternative) parses with its verb's grammar."""
+    monkeypatch.setattr(sys.modules[__name__], "_page_names", registered_names(ROOT / command.page))
     for argv in variants(command.text):
         for each in _each_verb(argv):
             check(each, monkeypatch)
@@ -309,3 +326,10 @@ def test_a_verb_placeholder_stands_for_each_verb_there() -> None:
     with_sections = _each_verb(["mjnav", "<verb>", "--help", "task.crowd"])
     assert ["mjnav", "train", "--help", "task.crowd"] in with_sections
     assert all(a[1:3] != ["bench", "sim"] for a in with_sections)
+
+
+def test_names_a_page_registers_are_known_there() -> None:
+    """The extending page's planner, crowd model and robot names count as known on that page only."""
+    names = registered_names(ROOT / "docs" / "extending.md")
+    assert {"straight", "bounce", "omni_mast"} <= names
+    assert not registered_names(ROOT / "docs" / "results.md")
