@@ -52,7 +52,7 @@ PAGES = (ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")))
 _START = re.compile(r"^(mjnav|python -m mjnav|python scripts/\w+\.py)(\s|$)")
 _FENCE = re.compile(r"^```(\w*)\s*$")
 _SHELL = {"", "bash", "sh", "shell", "console"}
-_INLINE = re.compile(r"`([^`\n]+)`")
+_INLINE = re.compile(r"`([^`]+)`")
 _OPTIONAL = re.compile(r"(?:(?<=\s)|^)\[([^\[\]]*)\]")
 _COMMENT = re.compile(r"\s+#.*$")
 
@@ -108,14 +108,15 @@ def _shell_lines(lines: list[str]) -> Iterator[tuple[int, str]]:
 
 
 def _inline_lines(lines: list[str]) -> Iterator[tuple[int, str]]:
-    """(line number, text) of each inline code span outside code blocks."""
-    inside = False
-    for number, line in enumerate(lines, 1):
+    """(line number, text) of each inline code span outside code blocks (a span may wrap a line)."""
+    prose, inside = [], False
+    for line in lines:
         if _FENCE.match(line.strip()):
             inside = not inside
-            continue
-        if not inside:
-            yield from ((number, span.strip()) for span in _INLINE.findall(line))
+        prose.append("" if inside or _FENCE.match(line.strip()) else line)
+    text = "\n".join(prose)
+    for match in _INLINE.finditer(text):
+        yield text.count("\n", 0, match.start()) + 1, " ".join(match.group(1).split())
 
 
 def commands(page: Path) -> list[Command]:

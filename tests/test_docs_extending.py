@@ -7,7 +7,7 @@ The page's code blocks are read in order:
 * a ``python`` block whose first line is ``# my_nav/<module>.py`` is written into the package
   ``my_nav`` in a temporary folder on ``PYTHONPATH``;
 * the ``toml`` block (``# pyproject.toml ...``) is installed as the entry points of a distribution
-  ``my_nav`` in that folder (a ``.dist-info`` next to the package, what ``pip install`` leaves);
+  ``my_nav`` (a ``.dist-info``, what ``pip install`` leaves), on the path of the command-line test only;
 * every other ``python`` block runs, in page order and each in a namespace of its own, in one fresh
   interpreter in the temporary folder, so its registrations never reach this test process.
 """
@@ -81,8 +81,8 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Path:
             if path.suffix == ".py":
                 (path.parent / "__init__.py").touch()
             path.write_text(code, encoding="utf-8")
-    info = root / "my_nav-0.1.dist-info"
-    info.mkdir()
+    info = root / "installed" / "my_nav-0.1.dist-info"  # on the path of the command-line test only
+    info.mkdir(parents=True)
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my_nav\nVersion: 0.1\n", encoding="utf-8")
     sections = [f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in entries.items())
                 for group, entries in _entry_points().items()]
@@ -90,10 +90,13 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
-def _run(argv: list[str], workspace: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    """``argv`` in a fresh interpreter in ``workspace`` with the page's package and stage on its paths."""
-    env = {**os.environ, TASKS_ENV: str(workspace / "tasks"), "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"),
-           "PYTHONPATH": os.pathsep.join([str(workspace), str(ROOT), os.environ.get("PYTHONPATH", "")])}
+def _run(argv: list[str], workspace: Path, installed: bool = False, timeout: float = 300
+         ) -> subprocess.CompletedProcess[str]:
+    """``argv`` in a fresh interpreter in ``workspace`` with the page's package and stage on its paths
+    (and, if ``installed``, the package's entry points)."""
+    paths = [str(workspace), *([str(workspace / "installed")] if installed else []), str(ROOT),
+             os.environ.get("PYTHONPATH", "")]
+    env = {**os.environ, TASKS_ENV: str(workspace / "tasks"), "PYTHONPATH": os.pathsep.join(paths)}
     return subprocess.run(argv, cwd=workspace, env=env, capture_output=True, text=True, timeout=timeout)
 
 
@@ -124,10 +127,10 @@ def test_the_command_line_finds_the_entry_points(workspace: Path) -> None:
     """With the page's package installed, ``mjnav evaluate policy=straight planner.speed=...`` runs it."""
     out = workspace / "evals"
     done = _run([sys.executable, "-m", "mjnav", "evaluate", "task=stage1", "policy=straight", "planner.speed=1.5",
-                 "episodes=1", "workers=0", f"out={out}", "layout.start_goal_max_distance=6.0"], workspace)
+                 "episodes=1", "workers=0", f"out={out}", "layout.start_goal_max_distance=6.0"], workspace, True)
     assert done.returncode == 0, done.stderr[-4000:]
     assert (out / "stage1.jsonl").is_file()
     names = _run([sys.executable, "-c", "from mjnav.world import PEDESTRIAN_MODELS as P; "
                   "from mjnav.entities import ROBOTS as R; print(P.get('bounce').source, R.get('omni_mast').source)"],
-                 workspace)
+                 workspace, True)
     assert names.stdout.split() == ["entry", "point", "my_nav", "entry", "point", "my_nav"], names.stderr[-2000:]
