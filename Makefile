@@ -4,7 +4,7 @@
 # The interpreter of .venv: PYTHON if given; else the distribution's /usr/bin/python3.11 where it
 # can make a venv (Debian and Ubuntu build it with PGO and LTO; mjnav's step is mostly interpreted
 # glue and ran 1.08-1.11x faster on it than on a default pyenv build, which has neither: see
-# docs/results.md); else python3.11 on PATH.
+# docs/performance.md); else python3.11 on PATH.
 PYTHON ?= $(or $(shell /usr/bin/python3.11 -c "import ensurepip, venv" 2>/dev/null && echo /usr/bin/python3.11),python3.11)
 VENV   ?= .venv
 # The CPU build where a local wheel provides it (our dev and CI machines); from PyPI on Linux this
