@@ -153,6 +153,7 @@ def run_script(argv: Sequence[str], script: str, summary: str, options: type, bo
     def grammar() -> Grammar:
         if "task" not in prefixes:
             return Grammar(options, prefixes)
+        # deferred: mjnav.config ~0.3 s (numba, scipy, osqp), not needed by scripts without task keys
         from mjnav.config import TASK_SECTIONS
 
         return Grammar(options, prefixes, {}, TASK_SECTIONS)
@@ -202,10 +203,12 @@ def _roots(prefixes: Sequence[str]) -> dict[str, type]:
     """The documented config class at the top of each prefix the verb takes."""
     roots: dict[str, type] = {}
     if "task" in prefixes:
+        # deferred: mjnav.config ~0.3 s (numba, scipy, osqp), not needed by `mjnav --help`
         from mjnav.config import TaskConfig
 
         roots["task"] = TaskConfig
     if "train" in prefixes:
+        # deferred: mjnav.train.config brings mjnav.config (~0.3 s, numba, scipy, osqp), not needed by `mjnav --help`
         from mjnav.train.config import TrainConfig
 
         roots["train"] = TrainConfig
@@ -213,6 +216,7 @@ def _roots(prefixes: Sequence[str]) -> dict[str, type]:
 
 
 def _planner_help(name: str | None) -> str:
+    # deferred: mjnav.planners ~0.6 s after mjnav.cli (MPC, numba kernels), only for `--help planner`
     from mjnav.planners import PLANNERS
 
     configs = {n: PLANNERS.get(n).config_class for n in PLANNERS.names() if PLANNERS.get(n).config_class}

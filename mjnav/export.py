@@ -20,19 +20,15 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from pathlib import Path
-from typing import TYPE_CHECKING
-
 import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from mjnav.config import TaskConfig
 from mjnav.entities.arena import SCENE_CONAFFINITY
 from mjnav.entities.robot import OmniRobot
 from mjnav.sim import NavSim
 from mjnav.world.layout import Layout
-
-if TYPE_CHECKING:
-    from mjnav.config import TaskConfig
 
 __all__ = ["bake_layout", "export_world", "record_episode", "robot_mjcf", "sanitize_mjcf", "write_mjcf"]
 
@@ -254,7 +250,6 @@ def robot_mjcf(config: TaskConfig | None = None, *, rangefinders: bool = True) -
         The MJCF text (model name ``robot``).
     """
     if config is None:
-        from mjnav.config import TaskConfig
         config = TaskConfig()
     robot = OmniRobot(config.robot, config.lidar, rangefinders=rangefinders)
     return sanitize_mjcf(robot.mjcf_model.to_xml_string(precision=XML_PRECISION))

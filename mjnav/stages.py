@@ -40,8 +40,8 @@ def stage_files() -> dict[str, Path]:
 def _file_factory(path: Path) -> Callable[..., Any]:
     """``make(overrides) -> TaskConfig`` of one YAML file."""
     def make(overrides: list[str] | dict[str, Any] | None = None) -> Any:
-        # Deferred: mjnav.config pulls in the MPC and region modules (~0.5 s), which `import mjnav`
-        # (it registers the Gymnasium ids from this module) must not pay.
+        # deferred: mjnav.config pulls in the MPC and region modules (~0.3 s: numba, scipy, osqp), which
+        # `import mjnav` (it registers the Gymnasium ids from this module) must not pay
         from mjnav.config import load_task
 
         return load_task(path, overrides)

@@ -145,7 +145,7 @@ def pyrvo_step_cost(task: str = "stage7", episodes: int = 5, periods: int = 300,
     each step as a crowd model would: no goal redraws, guard or contact counting.
     """
     try:
-        import pyrvo  # noqa: PLC0415  (optional: not a dependency)
+        import pyrvo  # noqa: PLC0415  # deferred: optional, not a dependency (None without it)
     except ImportError:
         return None
     config, orca = load_task(task), OrcaConfig()

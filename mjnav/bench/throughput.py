@@ -129,6 +129,8 @@ class VecBench:
     """The rsl-rl adapter with random actions; accumulates where its steps' time goes."""
 
     def __init__(self, config, num_envs: int, workers: int, steps: int, seed: int, step_in_main: bool) -> None:
+        # deferred: torch ~1 s, the adapter and rsl-rl ~3 s more (after this module's own imports),
+        # not needed by the other benchmark rows nor by `mjnav bench throughput --help`
         import torch
 
         from mjnav.envs.vec_env import NavVecEnv
@@ -150,7 +152,7 @@ class VecBench:
 
     def block(self) -> int:
         """``steps`` adapter steps of all environments."""
-        import torch
+        import torch  # deferred: as in __init__ (already loaded there, so free here)
 
         sums = self.sums
         start = time.perf_counter()

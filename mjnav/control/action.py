@@ -39,7 +39,7 @@ from typing import Literal
 import numpy as np
 from numba import njit
 
-from mjnav.control.dynamics import coast, jerk_travel
+from mjnav.control.dynamics import Limits, coast, jerk_travel
 from mjnav.geometry.polygon import (
     _point_in_halfplanes,
     _ray_circle,
@@ -83,8 +83,8 @@ class ActionConfig:
 
     heading: Literal["velocity", "absolute", "goal"] = "velocity"
     long_circle: Literal["code", "paper"] = "code"
-    jerk_max: float = 8.0
-    t_c: float = 0.1
+    jerk_max: float = Limits.j_max
+    t_c: float = Limits.control_period
     long_time: float = 1.0
     short_scale: float = 3.0
     long_min_radius: float = 10.0

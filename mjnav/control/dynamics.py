@@ -5,7 +5,9 @@ The robot is a triple integrator per axis driven by a jerk held over one control
 The MPC predicts with it (:func:`transition_matrices`, :func:`rollout`), the action layer and the
 QP bound its reach with it (:func:`coast`, :func:`jerk_travel`), the robot entity follows it as
 its reference (:func:`integrate`) and the random baseline keeps its velocity inside the limits
-with it. :class:`Limits` are the per-axis bounds every planner reads.
+with it. :class:`Limits` are the per-axis bounds every planner reads, the MPC and its QP included
+(:attr:`mjnav.control.mpc.MpcConfig.limits`, :meth:`Limits.bounds`); their defaults are the
+task schema's (:class:`mjnav.schema.RobotConfig` and its neighbours), so each number is written once.
 
 Two tracking laws live here too: :func:`track_velocity` (the jerk that drives the velocity to a
 command, used by the task's escape and the DWA/TEB baselines) and :func:`tracking_force` (the
@@ -21,14 +23,13 @@ Units are SI; positions in the robot frame (the robot never rotates).
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 from numba import njit
 
-if TYPE_CHECKING:
-    from mjnav.geometry.region import RegionConfig
-    from mjnav.schema import LidarConfig, RobotConfig, TimingConfig
+from mjnav.geometry.region import RegionConfig
+from mjnav.schema import LidarConfig, RobotConfig, TimingConfig
 
 __all__ = [
     "Limits",
@@ -58,7 +59,9 @@ class TaskSections(Protocol):
 
 @dataclasses.dataclass(frozen=True)
 class Limits:
-    """The robot's per-axis limits and sizes, as the planners read them.
+    """The robot's per-axis limits and sizes, as the planners, the MPC and its QP read them.
+
+    The defaults are those of the task config's sections (robot, timing, region, lidar).
 
     Attributes:
         control_period: t_c, seconds.
@@ -70,13 +73,13 @@ class Limits:
         max_range: LiDAR range, metres.
     """
 
-    control_period: float = 0.1
-    v_max: float = 2.5
-    a_max: float = 4.0
-    j_max: float = 8.0
-    radius: float = 0.225
-    inflation: float = 0.325
-    max_range: float = 10.0
+    control_period: float = TimingConfig.control_period
+    v_max: float = RobotConfig.v_max
+    a_max: float = RobotConfig.a_max
+    j_max: float = RobotConfig.j_max
+    radius: float = RobotConfig.radius
+    inflation: float = RegionConfig.inflation
+    max_range: float = LidarConfig.max_range
 
     @classmethod
     def from_task(cls, config: TaskSections) -> Limits:
@@ -90,6 +93,11 @@ class Limits:
             inflation=config.region.inflation,
             max_range=config.lidar.max_range,
         )
+
+    def bounds(self) -> np.ndarray:
+        """The ``(3,)`` per-axis bounds ``[j_max, v_max, a_max]`` (m/s³, m/s, m/s²), in the order the
+        QP kernels of :mod:`mjnav.control.qp` read them."""
+        return np.array([self.j_max, self.v_max, self.a_max])
 
 
 # ---------------------------------------------------------------------------- motion model

@@ -38,7 +38,7 @@ from typing import Literal
 import daqp
 import numpy as np
 
-from mjnav.control.dynamics import integrate, rollout, transition_matrices
+from mjnav.control.dynamics import Limits, integrate, rollout, transition_matrices
 from mjnav.control.qp import (
     INF,
     QpProblem,
@@ -88,15 +88,15 @@ class MpcConfig:
     """
 
     horizon: int = 10
-    t_c: float = 0.1
+    t_c: float = Limits.control_period
     w_track: float = 350.0
     w_jerk: float = 1.0
     w_vel: float = 1.0
     w_acc: float = 1.0
     cost_stop: Literal["always", "goal_inside"] = "always"
-    v_max: float = 2.5
-    a_max: float = 4.0
-    j_max: float = 8.0
+    v_max: float = Limits.v_max
+    a_max: float = Limits.a_max
+    j_max: float = Limits.j_max
     solver: Literal["daqp", "osqp", "quadprog"] = "daqp"
     max_halfplanes: int = 64
     drop_unreachable: bool = True
@@ -119,6 +119,12 @@ class MpcConfig:
         _check(self.cost_stop in ("always", "goal_inside"), "cost_stop", "must be 'always' or 'goal_inside'")
         _check(self.solver in ("daqp", "osqp", "quadprog"), "solver", "must be 'daqp', 'osqp' or 'quadprog'")
         _check(self.max_halfplanes >= 3, "max_halfplanes", "must be >= 3")
+
+    @property
+    def limits(self) -> Limits:
+        """The motion limits the MPC plans within (``t_c``, ``v_max``, ``a_max``, ``j_max``; in a task
+        config these follow ``timing`` and ``robot``). Sizes and range keep their defaults: unused here."""
+        return Limits(control_period=self.t_c, v_max=self.v_max, a_max=self.a_max, j_max=self.j_max)
 
 
 @dataclasses.dataclass(eq=False, slots=True)
@@ -208,11 +214,13 @@ class Mpc:
         self._n = 2 * n_steps + (1 if cfg.soft else 0)
         self._h_on, self._h_off = self._hessian(True), self._hessian(False)
         self._weights = np.array([cfg.w_track, cfg.w_vel, cfg.w_acc, cfg.soft_weight, cfg.w_track * cfg.track_short])
-        self._limits = np.array([cfg.j_max, cfg.v_max, cfg.a_max])
+        #: The motion limits planned within (:attr:`MpcConfig.limits`).
+        self.limits = lim = cfg.limits
+        self._limits = lim.bounds()
         self._a_fixed = self._fixed_rows()
         self._free = np.empty((n_steps, 3, 2))  # scratch of the DAQP assembly
-        self._lb = np.full(self._n, -cfg.j_max)
-        self._ub = np.full(self._n, cfg.j_max)
+        self._lb = np.full(self._n, -lim.j_max)
+        self._ub = np.full(self._n, lim.j_max)
         if cfg.soft:
             self._lb[-1], self._ub[-1] = 0.0, INF
         self._backend = make_backend(cfg.solver, self._a_fixed, self._gamma[0], cfg.max_halfplanes, cfg.soft)
@@ -427,15 +435,15 @@ class Mpc:
 
     def _brake(self, s: np.ndarray) -> np.ndarray:
         """Jerks that bring velocity and acceleration to zero (|u| <= j_max only)."""
-        cfg = self.config
+        cfg, j_max = self.config, self.limits.j_max
         _, gv, ga = self._gamma
         free_v = self._phi[:, 1, :] @ s  # (N, 2)
         free_a = self._phi[:, 2, :] @ s
         f = 2.0 * (cfg.brake_velocity_weight * gv.T @ free_v + ga.T @ free_a).T.ravel()
-        bound = np.full(f.size, cfg.j_max)
+        bound = np.full(f.size, j_max)
         x, _, flag, _ = daqp.solve(self._brake_h, f, np.zeros((0, f.size)), bound, -bound)
         if flag not in (1, 2):
-            x = np.clip(-np.linalg.solve(self._brake_h, f), -cfg.j_max, cfg.j_max)
+            x = np.clip(-np.linalg.solve(self._brake_h, f), -j_max, j_max)
         if cfg.soft:
             x = np.append(x, 0.0)
         return np.asarray(x)

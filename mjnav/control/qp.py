@@ -319,7 +319,7 @@ def plan_violation(
         x: QP solution; ``x[:N]`` x-jerks, ``x[N:2N]`` y-jerks (m/s³).
         steps: Horizon N.
         dt: Step, s.
-        limits: ``(3,)`` per-axis bounds (j_max, v_max, a_max).
+        limits: ``(3,)`` per-axis bounds (j_max, v_max, a_max): :meth:`mjnav.control.dynamics.Limits.bounds`.
         normals: ``(K, 2)`` half-plane normals (``K = 0``: no polygon check).
         offsets: ``(K,)`` half-plane offsets, metres.
 
@@ -359,7 +359,7 @@ def assemble(
         phi: ``(N, 3, 3)`` free response (:func:`~mjnav.control.mpc.prediction_matrices`).
         gamma: ``(3, N, N)`` jerk response.
         weights: ``(5,)`` (w_track of p_N, w_vel, w_acc, soft_weight, w_track of p_1).
-        limits: ``(3,)`` (j_max, v_max, a_max).
+        limits: ``(3,)`` (j_max, v_max, a_max): :meth:`mjnav.control.dynamics.Limits.bounds`.
         n: Number of variables (2N, or 2N + 1 with the slack as the last one).
 
     Returns:
@@ -429,7 +429,7 @@ def polygon_rows(
         offsets: ``(K,)`` offsets, metres.
         drop: Drop unreachable rows.
         gp: ``(N, N)`` position response to one axis' jerks.
-        limits: ``(3,)`` (j_max, v_max, a_max).
+        limits: ``(3,)`` (j_max, v_max, a_max): :meth:`mjnav.control.dynamics.Limits.bounds`.
         dt: Step, s.
         slots: Slots per step (OSQP pattern): row (k, j) has slot ``k·slots + j``.
         n: Number of variables; with ``n > 2N`` the last one is the slack (coefficient -1).

@@ -300,9 +300,10 @@ def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGy
     Raises:
         ValueError, FileNotFoundError: A bad task, override, policy or seed.
     """
+    # deferred: mjnav.envs ~0.5 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav evaluate --help`
     from mjnav.envs.gym_env import NavGymEnv
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.eval.policies import load_policy
-
     from mjnav.policy import training_overrides
 
     policy = args.get("policy", "mpc_goal")
@@ -368,11 +369,13 @@ def _init_worker(spec: EvalSpec) -> None:
 
 
 def _setup_worker(spec: EvalSpec) -> None:
+    # deferred: mjnav.envs ~0.5 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav evaluate --help`
     from mjnav.envs.gym_env import NavGymEnv
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.eval.policies import load_policy
 
     try:
-        import torch
+        import torch  # deferred: torch ~1-3 s (-X importtime), not needed to evaluate baselines
 
         torch.set_num_threads(1)
     except ImportError:
@@ -409,6 +412,7 @@ def _results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]
         _init_worker(spec)
         yield from map(_work, indices)
         return
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.eval.policies import load_policy
 
     try:  # a bad policy fails here, in seconds, before any worker starts
@@ -423,7 +427,7 @@ def _results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]
 
 def _progress(items: Iterator, total: int, label: str) -> Iterator:
     try:
-        from tqdm import tqdm
+        from tqdm import tqdm  # deferred: optional (not a dependency), only for a terminal; ~4 ms
     except ImportError:
         tqdm = None
     if tqdm is not None and sys.stderr.isatty():
@@ -474,7 +478,9 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
 
 def _common(spec: EvalSpec) -> dict[str, Any]:
     """The fields every JSONL record of evaluation ``spec`` shares (``_COMMON_KEYS``)."""
+    # deferred: mjnav.envs ~0.5 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav evaluate --help`
     from mjnav.envs.factory import resolve_config
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.policy import policy_name
 
     config = resolve_config(spec.task, spec.task_overrides or None)
@@ -648,6 +654,7 @@ def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
     None for other baselines and run names.
     """
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.planners import PLANNERS, planner_config
 
     if spec in PLANNERS and PLANNERS.get(spec).config_class is not None:
@@ -751,6 +758,7 @@ class EvaluateOptions:
 
 def grammar() -> Grammar:
     """What ``evaluate`` accepts: :class:`EvaluateOptions`, ``task.*`` overrides and ``planner.*`` parameters."""
+    # deferred: mjnav.config ~0.3 s (numba, scipy, osqp), not needed by `mjnav tables --help` (imports this module)
     from mjnav.config import TASK_SECTIONS
 
     return Grammar(EvaluateOptions, ("task", "planner"), {}, TASK_SECTIONS)
@@ -769,6 +777,7 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
         raise ValueError("policy= is required (mjnav evaluate --help)")
     workers = _at_least("workers", os.cpu_count() or 1 if opts.workers is None else opts.workers, 0)
     episodes, offset = _at_least("episodes", opts.episodes, 1), _at_least("seed_offset", opts.seed_offset, 0)
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.eval.policies import ACTION_MODES
     from mjnav.policy import training_overrides
 

@@ -36,6 +36,7 @@ from typing import Any
 from mjnav.eval.intervals import wilson
 from mjnav.eval.social import aggregate_social
 from mjnav import shipped
+from mjnav.eval.runner import _SPEC_KEYS, EvalSpec, evaluate, held_out_seed, policy_sha256, settle_from_contact
 from mjnav.eval.runner import read_jsonl as load_rows
 
 __all__ = ["TABLES", "Method", "Table", "format_social", "format_strata", "format_table", "load_rows",
@@ -198,7 +199,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     Raises:
         ValueError: A name in ``methods`` is not one of the table's.
     """
-    from mjnav.eval.runner import EvalSpec, evaluate, settle_from_contact
+    # deferred: mjnav.policy ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
     from mjnav.policy import BASELINES, training_overrides
 
     chosen = _chosen_methods(TABLES[table], methods)
@@ -239,8 +240,6 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
 def _replace_keeping(new: Path, path: Path) -> None:
     """Move the evaluation ``new`` to ``path``; records already at ``path`` from another evaluation (other
     policy version, commit, seeds or overrides) are first moved aside to ``<stem>.<commit>-<sha>.jsonl``."""
-    from mjnav.eval.runner import _SPEC_KEYS
-
     old, now = load_rows(path)[:1], load_rows(new)[:1]
     if old and now and any(old[0].get(k) != now[0].get(k) for k in (*_SPEC_KEYS, "seed")):
         aside = f"{str(old[0].get('commit'))[:8]}-{old[0].get('policy_sha256')}"
@@ -281,8 +280,6 @@ def _policy_file(policy: str, action: str) -> str | None:
 
 def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, policy: str, action: str) -> bool:
     """The records are ``episodes`` episodes of this policy file (path and content), action mode and seeds."""
-    from mjnav.eval.runner import held_out_seed, policy_sha256
-
     if len(found) != episodes:
         return False
     first = found[0]

@@ -308,7 +308,7 @@ class NavCore:
         if not np.all(np.isfinite(jerk)):
             raise ValueError(f"planner {type(planner).__name__} returned a non-finite jerk {jerk!r}")
         self._no_plan(position, np.zeros(2), None)
-        return np.clip(jerk, -self.config.mpc.j_max, self.config.mpc.j_max)
+        return np.clip(jerk, -self._limits.j_max, self._limits.j_max)
 
     # ------------------------------------------------------------------ scoring
     def finish_step(

@@ -21,10 +21,13 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import torch
 import yaml
 
 from mjnav import shipped
 from mjnav.args import Grammar, parse
+from mjnav.config import TASK_SECTIONS, TaskConfig
+from mjnav.policy import training_overrides
 from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
 from mjnav.stages import stage_numbers
 from mjnav.train import curriculum as stages
@@ -109,8 +112,6 @@ class TrainOptions:
 
 def grammar() -> Grammar:
     """What ``train`` accepts: :class:`TrainOptions`, ``task.*`` and ``train.*`` overrides, ``seed=`` (``train.seed=``)."""
-    from mjnav.config import TASK_SECTIONS
-
     return Grammar(TrainOptions, ("task", "train"), {"seed": "train.seed"}, TASK_SECTIONS)
 
 
@@ -128,8 +129,6 @@ def parse_args(argv: Sequence[str]) -> RunArgs:
 
 def _task_from_dict(data: dict[str, Any], overrides: list[str]) -> Any:
     """The saved run's task; a version-1 dump keeps version 1's layouts (no pedestrian clearance)."""
-    from mjnav.config import TaskConfig
-
     if int(data.get("version", 1)) < 2:
         layout = dict(data.get("layout") or {})
         layout.setdefault("pedestrian_clearance", 0.0)
@@ -206,8 +205,6 @@ def resolve_start(args: RunArgs) -> str:
 
 def _same_design(checkpoint: Path, args: RunArgs) -> bool:
     """The shipped checkpoint's design (observation and action sizes) is the one requested."""
-    from mjnav.policy import training_overrides
-
     trained = stages.load_stage(args.task, list(training_overrides(checkpoint)))  # type: ignore[arg-type]
     overrides = [*training_overrides(checkpoint), *args.task_overrides]
     wanted = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
@@ -276,8 +273,6 @@ def _plan_recipe(args: RunArgs) -> RunPlan:
 
 def _check_init(path: Path) -> Path:
     """``init=``: an rsl-rl checkpoint with actor and critic weights (checked before anything starts)."""
-    import torch
-
     path = shipped.resolve(path) or path  # a shipped NAME.weights
     if not path.is_file():
         raise ConfigError(f"init: no such checkpoint file {str(path)!r} (expected runs/<run>/model_<it>.pt, "
@@ -323,8 +318,6 @@ def check_device(device: str) -> None:
     Raises:
         ConfigError: CUDA/MPS not available in this torch build, or no such CUDA device index.
     """
-    import torch
-
     kind, _, index = device.partition(":")
     if kind == "cuda":
         count = torch.cuda.device_count() if torch.cuda.is_available() else 0

@@ -14,10 +14,10 @@ import time
 import numpy as np
 
 from mjnav.args import Grammar, Parsed
-
-from mjnav.planners.mpc_goal import MpcGoalPlanner
+from mjnav.config import TASK_SECTIONS
 from mjnav.envs.gym_env import NavGymEnv
 from mjnav.export import export_world
+from mjnav.planners.mpc_goal import MpcGoalPlanner
 from mjnav.schema import ConfigError
 
 __all__ = ["DemoOptions", "grammar", "run"]
@@ -40,8 +40,6 @@ class DemoOptions:
 
 def grammar() -> Grammar:
     """:class:`DemoOptions` and ``task.*`` overrides."""
-    from mjnav.config import TASK_SECTIONS
-
     return Grammar(DemoOptions, ("task",), {}, TASK_SECTIONS)
 
 

@@ -3,19 +3,17 @@
 from __future__ import annotations
 
 from mjnav.args import Grammar, Parsed
+from mjnav.eval.runner import grammar as runner_grammar
+from mjnav.eval.runner import main
 
 __all__ = ["grammar", "run"]
 
 
 def grammar() -> Grammar:
     """:func:`mjnav.eval.runner.grammar` (its options are :class:`mjnav.eval.runner.EvaluateOptions`)."""
-    from mjnav.eval.runner import grammar as runner_grammar
-
     return runner_grammar()
 
 
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Evaluate, write the files, print the table (:func:`mjnav.eval.runner.main`)."""
-    from mjnav.eval.runner import main
-
     return main(argv)

@@ -7,6 +7,7 @@ import dataclasses
 import sys
 
 from mjnav.args import Grammar, Parsed
+from mjnav.config import TASK_SECTIONS, load_task
 from mjnav.schema import ConfigError
 
 __all__ = ["ExportOptions", "grammar", "run"]
@@ -31,14 +32,12 @@ class ExportOptions:
 
 def grammar() -> Grammar:
     """:class:`ExportOptions` and ``task.*`` overrides."""
-    from mjnav.config import TASK_SECTIONS
-
     return Grammar(ExportOptions, ("task",), {}, TASK_SECTIONS)
 
 
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Export and print the two files written."""
-    from mjnav.config import load_task
+    # deferred: mjnav.export ~0.2 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav export --help`
     from mjnav.export import export_world
 
     opts: ExportOptions = parsed.options

@@ -16,6 +16,10 @@ import sys
 from pathlib import Path
 
 from mjnav.args import Grammar, Parsed
+from mjnav.cli import main as cli_main
+from mjnav.config import TASK_SECTIONS
+from mjnav.eval.runner import episode_setup, run_episode
+from mjnav.eval.tables import format_strata, load_rows, success_by_distance
 from mjnav.verbs.render import setup_args
 
 __all__ = ["CompareOptions", "CurveOptions", "DistanceOptions", "EpisodeOptions", "compare", "compare_grammar",
@@ -99,8 +103,6 @@ class DistanceOptions:
 
 
 def _grammar(options: type, prefixes: tuple[str, ...]) -> Grammar:
-    from mjnav.config import TASK_SECTIONS
-
     return Grammar(options, prefixes, {}, TASK_SECTIONS)
 
 
@@ -126,15 +128,11 @@ def distance_grammar() -> Grammar:
 
 def main(argv: list[str]) -> int:
     """``mjnav plot`` with ``argv`` (figure first); returns the exit code."""
-    from mjnav.cli import main as cli_main
-
     return cli_main(["plot", *argv])
 
 
 def _panel(env, agent, seed: int, instants: list[float] | None = None) -> tuple[dict, object]:
     """Run one episode; the keyword arguments of :func:`mjnav.eval.plots.draw_episode` and its metrics."""
-    from mjnav.eval.runner import run_episode
-
     metrics, _, trace = run_episode(env, agent, seed)
     dt = env.config.timing.control_period
     plans = []
@@ -154,8 +152,8 @@ def _fail(err: Exception) -> int:
 
 def episode(parsed: Parsed, argv: list[str]) -> int:
     """Plot one episode; returns the exit code."""
+    # deferred: mjnav.eval.plots ~0.4 s (matplotlib), not needed by `mjnav plot <figure> --help`
     from mjnav.eval.plots import plot_episode
-    from mjnav.eval.runner import episode_setup
 
     opts: EpisodeOptions = parsed.options
     try:
@@ -175,8 +173,8 @@ def episode(parsed: Parsed, argv: list[str]) -> int:
 
 def compare(parsed: Parsed, argv: list[str]) -> int:
     """Plot every policy on every task; returns the exit code."""
+    # deferred: mjnav.eval.plots ~0.4 s (matplotlib), not needed by `mjnav plot <figure> --help`
     from mjnav.eval.plots import plot_grid
-    from mjnav.eval.runner import episode_setup
 
     opts: CompareOptions = parsed.options
     if opts.policies is None:
@@ -202,6 +200,7 @@ def compare(parsed: Parsed, argv: list[str]) -> int:
 
 def curve(parsed: Parsed, argv: list[str]) -> int:
     """Plot a run's learning curves; returns the exit code."""
+    # deferred: mjnav.eval.plots ~0.4 s (matplotlib), not needed by `mjnav plot <figure> --help`
     from mjnav.eval.plots import plot_learning_curve
 
     opts: CurveOptions = parsed.options
@@ -224,8 +223,8 @@ def distance(parsed: Parsed, argv: list[str]) -> int:
 
 
 def _distance(opts: DistanceOptions) -> str:
+    # deferred: mjnav.eval.plots ~0.4 s (matplotlib), not needed by `mjnav plot <figure> --help`
     from mjnav.eval.plots import plot_success_by_distance
-    from mjnav.eval.tables import format_strata, load_rows, success_by_distance
 
     if opts.evals is None:
         raise ValueError("distance needs evals=A.jsonl[,B.jsonl] (evaluation records)")

@@ -7,6 +7,9 @@ import sys
 from typing import Literal
 
 from mjnav.args import Grammar, Parsed
+from mjnav.config import TASK_SECTIONS
+from mjnav.eval.runner import episode_setup
+from mjnav.viz.gl import GlBackendError, select_gl_backend
 
 __all__ = ["RenderOptions", "grammar", "run"]
 
@@ -42,8 +45,6 @@ class RenderOptions:
 
 def grammar() -> Grammar:
     """:class:`RenderOptions` and ``task.*`` overrides. The GL backend is EGL, else OSMesa (``MUJOCO_GL`` overrides)."""
-    from mjnav.config import TASK_SECTIONS
-
     return Grammar(RenderOptions, ("task",), {}, TASK_SECTIONS)
 
 
@@ -57,15 +58,13 @@ def setup_args(opts: RenderOptions | object) -> dict[str, object]:
 
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Render the episode and print where it went."""
-    from mjnav.viz.gl import GlBackendError, select_gl_backend
-
     opts: RenderOptions = parsed.options
     try:
         select_gl_backend()  # before MuJoCo is imported
     except GlBackendError as err:
         return _error(err)
+    # deferred: imports MuJoCo, which reads MUJOCO_GL once, so only after select_gl_backend(); also ~0.5 s
     from mjnav.eval.render import RenderConfig, render_episode
-    from mjnav.eval.runner import episode_setup
 
     try:  # bad task, override, policy or value: one line, before anything is rendered
         env, agent, seed = episode_setup(setup_args(opts), parsed.task)

@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 
 from mjnav.args import Grammar, Parsed
+from mjnav.eval.runner import EvalError
+from mjnav.eval.tables import TABLES, format_table, table_rows
 from mjnav.schema import ConfigError
 
 __all__ = ["TablesOptions", "grammar", "run"]
@@ -52,9 +54,8 @@ def grammar() -> Grammar:
 
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Build the table and print it; returns the exit code."""
+    # deferred: mjnav.eval.policies ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
     from mjnav.eval.policies import ACTION_MODES
-    from mjnav.eval.runner import EvalError
-    from mjnav.eval.tables import TABLES, format_table, table_rows
 
     opts: TablesOptions = parsed.options
     try:

@@ -6,21 +6,19 @@ import sys
 
 from mjnav.args import Grammar, Parsed
 from mjnav.schema import ConfigError
+from mjnav.train.session import grammar as session_grammar
+from mjnav.train.session import run as run_session
 
 __all__ = ["grammar", "run"]
 
 
 def grammar() -> Grammar:
     """:func:`mjnav.train.session.grammar` (its options are :class:`mjnav.train.session.TrainOptions`)."""
-    from mjnav.train.session import grammar as session_grammar
-
     return session_grammar()
 
 
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Train; the run folder records ``argv`` as given."""
-    from mjnav.train.session import run as run_session
-
     try:
         run_session(argv)
     except ConfigError as err:
