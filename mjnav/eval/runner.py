@@ -289,13 +289,15 @@ def _stack_peds(peds: list[np.ndarray]) -> np.ndarray:
     return out
 
 
-def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGymEnv, Agent, int]:
+def episode_setup(args: dict[str, str], overrides: Sequence[str],
+                  planner: Sequence[str] = ()) -> tuple[NavGymEnv, Agent, int]:
     """Environment, agent and episode seed of one scripted episode (``scripts/render.py``, ``plot.py``).
 
     Args:
         args: ``task`` (default stage6), ``policy`` (default mpc_goal), and ``episode_seed`` (a raw
             episode seed) or ``seed`` (held-out scenario index, default 0).
         overrides: Task config overrides.
+        planner: ``planner.<field>=value`` parameter overrides (``["margin=0.5"]``).
 
     Raises:
         ValueError, FileNotFoundError: A bad task, override, policy or seed.
@@ -307,7 +309,7 @@ def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGy
 
     policy = args.get("policy", "mpc_goal")
     env = NavGymEnv(args.get("task", "stage6"), overrides=[*training_overrides(policy), *overrides] or None, seed=0)
-    agent = load_policy(policy)
+    agent = load_policy(policy, planner=planner)
     seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
     return env, agent, seed
 
@@ -469,12 +471,14 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         _rewrite_sorted(path)
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
     return {**summary_row(summary, task, policy_name), **aggregate_social(rows),
-            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset}
+            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset,
+            "planner_privileged": ",".join(common["planner_privileged"] or ())}
 
 
 def _common(spec: EvalSpec) -> dict[str, Any]:
     """The fields every JSONL record of evaluation ``spec`` shares (``_COMMON_KEYS``)."""
     from mjnav.envs.factory import resolve_config
+    from mjnav.eval.policies import planner_record
     from mjnav.policy import policy_name
 
     config = resolve_config(spec.task, spec.task_overrides or None)
@@ -482,7 +486,8 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
             "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy, spec.planner),
             "commit": git_commit(), "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
-            "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
+            "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner),
+            **planner_record(spec.policy, spec.planner)}
 
 
 def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Path) -> int:
@@ -563,10 +568,11 @@ def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
 
 #: Fields every record of one evaluation shares (the rest is the episode's, from :func:`_work`).
 _COMMON_KEYS = ("task", "task_version", "policy", "policy_source", "policy_sha256", "commit", "overrides",
-                "policy_overrides", "collision", "design", "action_mode", "planner_overrides")
+                "policy_overrides", "collision", "design", "action_mode", "planner_overrides", "planner_source",
+                "planner_sha256", "planner_params", "planner_privileged")
 #: Fields that must match for an interrupted evaluation to be continued rather than started over.
 _SPEC_KEYS = ("task", "task_version", "policy_source", "policy_sha256", "commit", "overrides", "action_mode",
-              "planner_overrides")
+              "planner_overrides", "planner_source", "planner_sha256", "planner_params")
 
 
 def _append(path: Path, common: dict[str, Any], stream: Iterator[dict[str, Any]]) -> Iterator[dict[str, Any]]:
@@ -803,7 +809,7 @@ def main(argv: Sequence[str]) -> int:
         return 2
     try:
         rows = evaluate_tasks(specs, out, from_contact=from_contact)
-    except (ConfigError, FileNotFoundError, EvalError) as err:  # bad task, override or policy
+    except (ValueError, FileNotFoundError, EvalError) as err:  # bad task, override, policy or planner
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_markdown(rows), end="")

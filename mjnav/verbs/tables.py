@@ -32,6 +32,8 @@ class TablesOptions:
         action: ``mean``, ``expected`` or ``sample`` (how a learned policy acts).
         methods: Comma-separated methods to keep (names as the table prints them); empty: all.
         social: Add a table of the social-navigation metrics (:mod:`mjnav.eval.social`).
+        planners: Comma-separated planners added as methods: registered names, ``package.module:Class``
+            or ``path/to/file.py:Class``; those reading ground truth are marked "(privileged)".
     """
 
     table: int = 2
@@ -43,6 +45,7 @@ class TablesOptions:
     action: str = "mean"
     methods: str = ""
     social: bool = False
+    planners: str = ""
 
 
 def grammar() -> Grammar:
@@ -64,9 +67,10 @@ def run(parsed: Parsed, argv: list[str]) -> int:
             raise ConfigError(f"table: {opts.table} is not available (known: {sorted(TABLES)})")
         names = [n.strip() for n in opts.methods.split(",") if n.strip()] or None
         workers = os.cpu_count() or 1 if opts.workers is None else opts.workers
+        planners = [p.strip() for p in opts.planners.split(",") if p.strip()]
         rows = table_rows(opts.table, Path(opts.out), opts.episodes, opts.seed_offset, workers, opts.run,
-                          opts.action, names)
-    except (ConfigError, ValueError, FileNotFoundError, EvalError) as err:  # EvalError: a file of another evaluation
+                          opts.action, names, planners)
+    except (ConfigError, ValueError, KeyError, FileNotFoundError, EvalError) as err:  # EvalError: a file of another evaluation
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_table(rows, TABLES[opts.table].abs_acc, opts.social), end="")
