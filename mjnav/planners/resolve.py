@@ -146,7 +146,10 @@ def resolve_planner(spec: str | Path, registry: Registry | None = None) -> Plann
     else:
         raise PlannerError(f"planner {text!r}: not a registered name ({', '.join(planners.names())}), "
                            "package.module:Class nor path/to/file.py:Class")
-    _ = found.privileged  # a bad declaration fails here, at load time
+    try:  # a bad declaration fails here, at load time
+        found.privileged  # noqa: B018
+    except ValueError as err:
+        raise PlannerError(f"planner {text!r}: {err}") from err
     return found
 
 
