@@ -23,13 +23,14 @@ an example are in ``docs/planners.md``). Outside packages add planners through t
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 from mjnav.planners.base import Planner, PlannerInput
 from mjnav.planners.dwa import DwaConfig, DwaPlanner
 from mjnav.planners.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
 from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
 from mjnav.planners.random import RandomActionPolicy, RandomPlanner
-from mjnav.planners.resolve import PlannerError, PlannerSource, is_planner_spec, resolve_planner
+from mjnav.planners.resolve import PlannerError, PlannerSource, is_spec, resolve
 from mjnav.planners.teb import TebConfig, TebPlanner
 from mjnav.registry import Registry
 
@@ -64,6 +65,23 @@ PLANNERS.register("mpc_crowd", MpcCrowdPlanner, config=MpcCrowdConfig, source="b
 PLANNERS.register("teb", TebPlanner, config=TebConfig, source="builtin")
 PLANNERS.register("dwa", DwaPlanner, config=DwaConfig, source="builtin")
 PLANNERS.register("random_jerk", RandomPlanner, source="builtin")
+
+
+def resolve_planner(spec: str | Path) -> PlannerSource:
+    """The planner a spec names: a name of :data:`PLANNERS`, ``package.module:Class`` or
+    ``path/to/file.py:Class`` (:func:`mjnav.planners.resolve.resolve`).
+
+    Raises:
+        mjnav.registry.RegistryError: An unknown name (a KeyError listing the known ones and the closest).
+        PlannerError: A missing file, a failed import, no such class, not a Planner, a bad ``privileged``.
+    """
+    return resolve(spec, PLANNERS)
+
+
+def is_planner_spec(spec: str | Path) -> bool:
+    """Whether ``spec`` names a planner by its form (a name of :data:`PLANNERS`, ``module:Class`` or
+    ``file.py:Class``); nothing is imported."""
+    return is_spec(spec, PLANNERS)
 
 
 def planner_config(name: str, overrides: Sequence[str] = ()) -> object | None:

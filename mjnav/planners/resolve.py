@@ -9,7 +9,7 @@ A planner spec is one of:
   absolute path (``mjnav_planner_file_<hash>_<stem>``), so every worker process loads it the same
   way and nothing has to be pickled.
 
-:func:`resolve_planner` turns a spec into a :class:`PlannerSource`: the factory, its config class
+:func:`resolve` (``mjnav.planners.resolve_planner``, with :data:`mjnav.planners.PLANNERS`) turns a spec into a :class:`PlannerSource`: the factory, its config class
 (its ``config_class`` attribute or the registry's), the ground truth it declares
 (``privileged``), what to record (``source``, :meth:`PlannerSource.sha256`) and how to build it
 with ``planner.<field>=value`` overrides (:meth:`PlannerSource.make`).
@@ -30,10 +30,10 @@ from pathlib import Path
 from typing import Any
 
 from mjnav.planners.base import Planner, declared_privileged
-from mjnav.registry import Registry
+from mjnav.registry import Registry, RegistryError
 from mjnav.schema import ConfigError, apply_overrides
 
-__all__ = ["PlannerError", "PlannerSource", "is_planner_spec", "resolve_planner"]
+__all__ = ["PlannerError", "PlannerSource", "is_spec", "resolve"]
 
 _IDENT = r"[A-Za-z_]\w*"
 _MODULE_SPEC = re.compile(rf"^{_IDENT}(\.{_IDENT})*:{_IDENT}$")
@@ -109,19 +109,19 @@ class PlannerSource:
         return digest.hexdigest()
 
 
-def is_planner_spec(spec: str | Path, registry: Registry | None = None) -> bool:
-    """Whether ``spec`` names a planner (registered name, ``module:Class`` or ``file.py:Class``),
+def is_spec(spec: str | Path, registry: Registry) -> bool:
+    """Whether ``spec`` names a planner (a name in ``registry``, ``module:Class`` or ``file.py:Class``),
     by its form only: nothing outside the registry is imported."""
     text = str(spec)
-    return text in _registry(registry) or bool(_FILE_SPEC.match(text) or _MODULE_SPEC.match(text))
+    return text in registry or bool(_FILE_SPEC.match(text) or _MODULE_SPEC.match(text))
 
 
-def resolve_planner(spec: str | Path, registry: Registry | None = None) -> PlannerSource:
+def resolve(spec: str | Path, registry: Registry) -> PlannerSource:
     """The planner named by ``spec`` (module docstring).
 
     Args:
         spec: Registered name, ``package.module:Class`` or ``path/to/file.py:Class``.
-        registry: Where names are looked up (default :data:`mjnav.planners.PLANNERS`).
+        registry: Where names are looked up (:data:`mjnav.planners.PLANNERS`).
 
     Raises:
         mjnav.registry.RegistryError: An unknown name (the message lists the known ones).
@@ -129,7 +129,7 @@ def resolve_planner(spec: str | Path, registry: Registry | None = None) -> Plann
             that is not a Planner, or a bad ``privileged`` declaration.
     """
     text = str(spec)
-    planners = _registry(registry)
+    planners = registry
     if text in planners:
         entry = planners.get(text)
         found = PlannerSource(text, text, text, entry.factory, entry.config_class, _source_files(entry.factory))
@@ -144,21 +144,13 @@ def resolve_planner(spec: str | Path, registry: Registry | None = None) -> Plann
         found = PlannerSource(text, text, text, factory, getattr(factory, "config_class", None),
                               _source_files(factory))
     else:
-        raise PlannerError(f"planner {text!r}: not a registered name ({', '.join(planners.names())}), "
-                           "package.module:Class nor path/to/file.py:Class")
+        raise RegistryError(f"{planners.unknown_message(text)}; or give package.module:Class or "
+                            "path/to/file.py:Class")
     try:  # a bad declaration fails here, at load time
         found.privileged  # noqa: B018
     except ValueError as err:
         raise PlannerError(f"planner {text!r}: {err}") from err
     return found
-
-
-def _registry(registry: Registry | None) -> Registry:
-    if registry is not None:
-        return registry
-    from mjnav.planners import PLANNERS  # the package imports this module
-
-    return PLANNERS
 
 
 def _module_name(path: Path) -> str:
