@@ -731,8 +731,8 @@ class EvaluateOptions:
     """The ``evaluate`` verb's own keys (``mjnav evaluate --help``).
 
     Attributes:
-        policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a baseline (mpc_goal,
-            mpc_gap, mpc_crowd, teb, dwa, random_jerk); required.
+        policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a planner (mpc_goal,
+            mpc_gap, mpc_crowd, teb, dwa, random_jerk, ``package.module:Class``, ``file.py:Class``); required.
         task: Bundled stage name or task YAML path.
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.

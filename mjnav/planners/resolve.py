@@ -9,8 +9,9 @@ A planner spec is one of:
   absolute path (``mjnav_planner_file_<hash>_<stem>``), so every worker process loads it the same
   way and nothing has to be pickled.
 
-:func:`resolve` (``mjnav.planners.resolve_planner``, with :data:`mjnav.planners.PLANNERS`) turns a spec into a :class:`PlannerSource`: the factory, its config class
-(its ``config_class`` attribute or the registry's), the ground truth it declares
+:func:`resolve` (``mjnav.planners.resolve_planner``, with :data:`mjnav.planners.PLANNERS`) turns a
+spec into a :class:`PlannerSource`: the factory, its config class (its ``config_class`` attribute or
+the registry's), the ground truth it declares
 (``privileged``), what to record (``source``, :meth:`PlannerSource.sha256`) and how to build it
 with ``planner.<field>=value`` overrides (:meth:`PlannerSource.make`).
 """

@@ -70,7 +70,8 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         planners = [p.strip() for p in opts.planners.split(",") if p.strip()]
         rows = table_rows(opts.table, Path(opts.out), opts.episodes, opts.seed_offset, workers, opts.run,
                           opts.action, names, planners)
-    except (ConfigError, ValueError, KeyError, FileNotFoundError, EvalError) as err:  # EvalError: a file of another evaluation
+    # EvalError: a file of another evaluation; KeyError: an unknown planner name
+    except (ConfigError, ValueError, KeyError, FileNotFoundError, EvalError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_table(rows, TABLES[opts.table].abs_acc, opts.social), end="")
