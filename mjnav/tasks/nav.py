@@ -119,7 +119,10 @@ class CrowdNavTask(composer.Task):
             truth["velocities"] = self.sim.pedestrian_velocities()
         if "goals" in declared:
             truth["goals"] = self.sim.pedestrian_goals()
-        return {key: truth[key] for key in declared}
+        chosen = {key: truth[key] for key in declared}
+        for value in chosen.values():
+            value.flags.writeable = False  # the planner reads them; writing would change nothing anyway
+        return chosen
 
     def before_substep(self, physics, action, random_state) -> None:
         """Move the pedestrians and apply the tracking force."""

@@ -71,7 +71,7 @@ def test_only_the_declared_fields_are_filled():
 def test_an_oracle_gets_positions_velocities_radii_and_goals():
     """All four declared (random walk): positions and radii of the 10 pedestrians, velocities equal to
     their displacement over the period's last substep (speeds of a walking crowd), goals NaN (the
-    random walk has none)."""
+    random walk has none); every array is read-only."""
     inputs = _run(_Oracle()).inputs
     first, last = inputs[0], inputs[-1]
     assert first.pedestrian_positions.shape == (10, 2) and first.pedestrian_radii.shape == (10,)
@@ -81,6 +81,8 @@ def test_an_oracle_gets_positions_velocities_radii_and_goals():
     mean_velocity = (last.pedestrian_positions - inputs[-2].pedestrian_positions) / 0.1
     assert np.allclose(last.pedestrian_velocities, mean_velocity, atol=0.15)
     assert np.isnan(last.pedestrian_goals).all()
+    assert not any(a.flags.writeable for a in (first.pedestrian_positions, first.pedestrian_velocities,
+                                               first.pedestrian_radii, first.pedestrian_goals))
 
 
 def test_goals_come_from_a_crowd_model_with_goals():
