@@ -13,7 +13,7 @@ Accepted specs:
   checkpoint), looked up and checksum-checked in ``policies/manifest.yaml`` (:mod:`mjnav.shipped`);
 * a planner: a registered name (``mpc_goal``, ``teb``, ``dwa``, ``random_jerk``, entry points of
   the ``mjnav.planners`` group), ``package.module:Class`` or ``path/to/file.py:Class``
-  (:func:`mjnav.planners.resolve.resolve_planner`; ``docs/planners.md``);
+  (:func:`mjnav.planners.resolve_planner`; the planners guide of the documentation);
 * ``random`` (random raw actions through the learned action path).
 
 Learned policies act through the normal action path, deterministically: the raw action is the

@@ -9,8 +9,8 @@ brakes (and counts it in ``stats``) instead of raising.
 
 Planners are looked up by name in :data:`PLANNERS` (``policy=<name>``; ``planner.<field>=value``
 sets the fields of its config class), or given as ``policy=package.module:Class`` or
-``policy=path/to/file.py:Class`` (:func:`mjnav.planners.resolve.resolve_planner`; the protocol and
-an example are in ``docs/planners.md``). Outside packages add planners through the entry-point group
+``policy=path/to/file.py:Class`` (:func:`mjnav.planners.resolve.resolve`; the protocol and
+an example are in the planners guide of the documentation). Outside packages add planners through the entry-point group
 ``mjnav.planners``; in one module::
 
     from mjnav.planners import PLANNERS
@@ -90,7 +90,7 @@ def planner_config(name: str, overrides: Sequence[str] = ()) -> object | None:
 
     Args:
         name: A planner spec: registered name, ``package.module:Class`` or ``file.py:Class``
-            (:func:`mjnav.planners.resolve.resolve_planner`).
+            (:func:`mjnav.planners.resolve.resolve`).
         overrides: ``["w_clearance=0.8", ...]``.
 
     Raises:

@@ -100,7 +100,7 @@ class Planner(typing.Protocol):
     Optional attributes: ``privileged`` (the ground truth it reads, a subset of
     :data:`PRIVILEGED_FIELDS`; none when absent), ``config_class`` (the dataclass its constructor
     takes, for ``planner.<field>=value``) and ``stats`` (a dict of integer counters recorded per
-    episode). See ``docs/planners.md``.
+    episode). The planners guide of the documentation describes each.
     """
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
