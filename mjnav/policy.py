@@ -23,7 +23,7 @@ import numpy as np
 import yaml
 
 from mjnav import shipped
-from mjnav.planners import PLANNERS
+from mjnav.planners import PLANNERS, is_planner_spec, resolve_planner
 
 __all__ = [
     "BASELINES",
@@ -48,11 +48,13 @@ if TYPE_CHECKING:
     import torch
 
 class _Baselines:
-    """The names accepted besides paths: every planner of :data:`mjnav.planners.PLANNERS`, looked up
-    when asked (so planners registered later count), and ``random`` (random raw actions)."""
+    """The specs accepted besides paths: every planner spec (a name of :data:`mjnav.planners.PLANNERS`,
+    looked up when asked so planners registered later count, ``package.module:Class`` or
+    ``file.py:Class``: :func:`mjnav.planners.is_planner_spec`) and ``random`` (random raw actions).
+    Iteration lists the names."""
 
     def __contains__(self, name: object) -> bool:
-        return name == "random" or name in PLANNERS
+        return name == "random" or (isinstance(name, (str, Path)) and is_planner_spec(name))
 
     def __iter__(self) -> Iterator[str]:
         return iter([*PLANNERS.names(), "random"])
@@ -185,14 +187,22 @@ def find_policy(spec: str | Path, runs_dir: str | Path) -> Path:
         path = shipped.resolve(spec) or path
     if not path.exists():
         known = ", ".join(BASELINES)
-        raise FileNotFoundError(f"policy {str(spec)!r}: not a baseline ({known}), a shipped policy "
-                                f"({', '.join(shipped.names())}) nor an existing path")
+        raise FileNotFoundError(f"policy {str(spec)!r}: not a planner ({known}, package.module:Class or "
+                                f"path/to/file.py:Class), a shipped policy ({', '.join(shipped.names())}) "
+                                "nor an existing path")
+    if path.suffix == ".py":
+        raise FileNotFoundError(f"policy {str(spec)!r}: a Python file is a planner: name its class, "
+                                f"{str(spec)}:ClassName")
     return resolve_checkpoint(path)
 
 
 def policy_name(spec: str | Path, runs_dir: str | Path = "runs") -> str:
-    """Display name of a policy spec without loading it (baseline name or ``run[/model_<it>]``)."""
-    return str(spec) if str(spec) in BASELINES else display_name(find_policy(spec, runs_dir))
+    """Display name of a policy spec: a planner's (:attr:`mjnav.planners.PlannerSource.name`),
+    ``random`` or a learned policy's ``run[/model_<it>]`` (without loading the network)."""
+    text = str(spec)
+    if text == "random":
+        return text
+    return resolve_planner(text).name if text in BASELINES else display_name(find_policy(spec, runs_dir))
 
 
 def load_actor(path: Path, with_log_std: bool = False) -> tuple[torch.nn.Module, np.ndarray | None]:

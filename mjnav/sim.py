@@ -112,6 +112,7 @@ class NavSim:
         self._crowd_track = np.zeros((0, 0, 2))  # this period's pedestrian positions, one row a substep
         self._ahead, self._ahead_at = np.zeros((0, 0, 2)), 0  # crowd steps computed ahead, next row to use
         self._crowd_now = np.zeros((0, 2))  # the pedestrians' positions now (the last row used)
+        self._crowd_before: np.ndarray | None = None  # their positions one substep earlier
         self._ped_xy, self._ped_xy_data = np.zeros((0, 2)), None  # mocap x, y view and its MjData
         self._state_views: tuple = (None, None, None)  # (MjData, qpos view, qvel view) of the robot
         self.fused = fused
@@ -211,6 +212,7 @@ class NavSim:
         self._crowd_track = np.zeros((0, self._num_peds, 2))
         self._ahead, self._ahead_at = np.zeros((0, self._num_peds, 2)), 0
         self._crowd_now = self.pedestrians.positions if self._num_peds else np.zeros((0, 2))
+        self._crowd_before = None  # positions one substep before _crowd_now (None: none moved yet)
         self.layout = layout
         return layout
 
@@ -272,6 +274,7 @@ class NavSim:
                 i = 0
             self._ahead_at = i + steps
             track = ahead[i : i + steps]
+        self._crowd_before = track[-2] if len(track) > 1 else self._crowd_now
         self._crowd_now = track[-1]
         return track
 
@@ -367,6 +370,19 @@ class NavSim:
     def pedestrian_circles(self) -> np.ndarray:
         """(P, 3) ``[x, y, r]`` of the active pedestrians, metres."""
         return self._current_circles().copy()
+
+    def pedestrian_velocities(self) -> np.ndarray:
+        """(P, 2) velocities of the active pedestrians over the last physics substep, m/s (the crowd
+        model's own before the first step)."""
+        if self._crowd_before is None:
+            return self.pedestrians.velocities if self._num_peds else np.zeros((0, 2))
+        return (self._crowd_now - self._crowd_before) / self._dt
+
+    def pedestrian_goals(self) -> np.ndarray:
+        """(P, 2) the active pedestrians' goals as the crowd model holds them, metres (NaN rows for a
+        model without goals; a model that ignores the robot runs up to CROWD_LOOKAHEAD periods ahead)."""
+        goals = getattr(self.pedestrians, "goals", None) if self._num_peds else np.zeros((0, 2))
+        return np.full((self._num_peds, 2), np.nan) if goals is None else np.array(goals, dtype=np.float64)
 
     def _current_circles(self) -> np.ndarray:
         """The reused ``(P, 3)`` circles buffer, refreshed with the current positions."""

@@ -277,16 +277,24 @@ def _cell(value: Any, fmt: str) -> str:
     return fmt.format(value)
 
 
+def _shown(row: Mapping[str, Any], key: str) -> Any:
+    """The value of ``key`` as a table shows it: a planner that reads ground truth (``planner_privileged``
+    non-empty) is marked "(privileged)" after its name."""
+    value = row.get(key)
+    return f"{value} (privileged)" if key == "policy" and row.get("planner_privileged") else value
+
+
 def format_markdown(rows: Sequence[Mapping[str, Any]]) -> str:
     """A GitHub-markdown table of summary rows with the paper's columns, and the social metrics'
-    (:data:`mjnav.eval.social.SOCIAL_COLUMNS`) before the episode count when a row has them."""
+    (:data:`mjnav.eval.social.SOCIAL_COLUMNS`) before the episode count when a row has them; a
+    privileged planner's method is marked "(privileged)"."""
 
     columns = COLUMNS
     if any(row.get("social_episodes") for row in rows):
         columns = (*COLUMNS[:-1], *SOCIAL_COLUMNS, COLUMNS[-1])
     header = "| " + " | ".join(label for _, label, _ in columns) + " |"
     rule = "|" + "|".join("---" for _ in columns) + "|"
-    body = ["| " + " | ".join(_cell(row.get(key), fmt) for key, _, fmt in columns) + " |" for row in rows]
+    body = ["| " + " | ".join(_cell(_shown(row, key), fmt) for key, _, fmt in columns) + " |" for row in rows]
     return "\n".join([header, rule, *body]) + "\n"
 
 

@@ -11,8 +11,10 @@ Accepted specs:
   its latest checkpoint;
 * a shipped policy's name (``stage6_policy``; ``stage5_policy.weights`` for its weights-only
   checkpoint), looked up and checksum-checked in ``policies/manifest.yaml`` (:mod:`mjnav.shipped`);
-* a baseline name: ``mpc_goal``, ``teb``, ``dwa``, ``random_jerk`` (planners, see
-  :mod:`mjnav.planners`) or ``random`` (random raw actions through the learned action path).
+* a planner: a registered name (``mpc_goal``, ``teb``, ``dwa``, ``random_jerk``, entry points of
+  the ``mjnav.planners`` group), ``package.module:Class`` or ``path/to/file.py:Class``
+  (:func:`mjnav.planners.resolve_planner`; the planners guide of the documentation);
+* ``random`` (random raw actions through the learned action path).
 
 Learned policies act through the normal action path, deterministically: the raw action is the
 network's mean (the environment applies the sigmoid). Every loaded policy is an :class:`Agent`:
@@ -28,11 +30,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mjnav.planners import PLANNERS, RandomActionPolicy, make_planner
+from mjnav.planners import RandomActionPolicy, is_planner_spec, resolve_planner
 from mjnav.policy import display_name, find_policy, input_size, is_checkpoint, load_actor, torch_actor
+from mjnav.planners.base import declared_privileged
 from mjnav.schema import ConfigError
 
-__all__ = ["ACTION_MODES", "Agent", "TimedPlanner", "load_policy"]
+__all__ = ["ACTION_MODES", "Agent", "TimedPlanner", "load_policy", "planner_record"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
@@ -50,6 +53,11 @@ class TimedPlanner:
         """Wrap ``planner`` (a :class:`mjnav.planners.base.Planner`)."""
         self.planner = planner
         self.times: list[float] = []
+
+    @property
+    def privileged(self) -> frozenset[str]:
+        """The wrapped planner's declared ground truth (:func:`mjnav.planners.base.declared_privileged`)."""
+        return declared_privileged(self.planner)
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
         """Forward to the planner and clear the timings."""
@@ -71,6 +79,7 @@ class Agent:
         name: Display name (baseline name or the loaded file's run/name).
         kind: ``learned``, ``random`` or ``planner``.
         source: What was loaded (a path or the baseline name).
+        privileged: The ground truth a planner declared (empty for learned policies).
     """
 
     def __init__(
@@ -83,6 +92,7 @@ class Agent:
         self.action_size = 4  # the task's, from begin()
         self.planner = TimedPlanner(planner) if planner is not None else None
         self.input_size: int | None = None  # observation length a learned actor takes
+        self.privileged = declared_privileged(planner) if planner is not None else frozenset()
 
     def begin(self, task: CrowdNavTask, episode_seed: int) -> None:
         """Install on ``task`` (a CrowdNavTask) before its reset for ``episode_seed``.
@@ -170,30 +180,54 @@ def load_policy(spec: str | Path, runs_dir: str | Path = "runs", mode: str = "me
     """Load a policy by ``PATH_OR_NAME`` (see the module docstring).
 
     Args:
-        spec: Baseline name, file or run directory (or a run name under ``runs_dir``).
+        spec: Planner spec (registered name, ``module:Class``, ``file.py:Class``), file or run
+            directory (or a run name under ``runs_dir``).
         runs_dir: Where run names are looked up.
         mode: ``mean`` (deterministic, sigmoid of the mean, spec §8), ``expected`` (deterministic,
             the expected squashed action of the Gaussian, :class:`_ExpectedActor`) or ``sample``
             (the training Gaussian, noise seeded by the episode seed); the last two need a
             checkpoint.
-        planner: ``["w_clearance=0.8", ...]`` parameter overrides of a baseline planner
-            (:func:`mjnav.planners.make_planner`); rejected for anything else.
+        planner: ``["w_clearance=0.8", ...]`` parameter overrides of a planner with a config
+            class (:meth:`mjnav.planners.resolve.PlannerSource.make`); rejected for anything else.
 
     Returns:
         The :class:`Agent`.
 
     Raises:
-        FileNotFoundError: Neither a baseline nor an existing file/run.
+        FileNotFoundError: Neither a planner nor an existing file/run.
+        mjnav.planners.PlannerError: A planner module or file that cannot be loaded, or not a Planner
+            (a ValueError).
         ValueError: The file is not a TorchScript policy or an rsl-rl checkpoint of a known actor.
         ConfigError: Planner overrides for a policy that is not a configurable planner.
     """
     text = str(spec)
-    if planner and text not in PLANNERS:
-        raise ConfigError(f"planner overrides {list(planner)} need a baseline planner, not {text!r}")
+    if planner and not is_planner_spec(text):
+        raise ConfigError(f"planner overrides {list(planner)} need a planner, not {text!r}")
     if text == "random":
         return Agent("random", "random", "random", actor=RandomActionPolicy())
-    if text in PLANNERS:
-        return Agent(text, "planner", text, planner=make_planner(text, planner))
+    if is_planner_spec(text):
+        found = resolve_planner(text)
+        return Agent(found.name, "planner", found.source, planner=found.make(planner))
     if mode not in ACTION_MODES:
         raise ValueError(f"action: expected one of {ACTION_MODES}, got {mode!r}")
     return _load_learned(find_policy(text, runs_dir), mode)
+
+
+def planner_record(spec: str | Path, overrides: Sequence[str] = ()) -> dict[str, object]:
+    """What an evaluation's JSONL records about the planner of ``spec`` (all None for other policies).
+
+    Returns:
+        ``planner_source`` (registered name, ``module:Class`` or ``<absolute path>:Class``),
+        ``planner_sha256`` (its source files, :meth:`mjnav.planners.PlannerSource.sha256`),
+        ``planner_params`` (its resolved parameters, ``{}`` without a config class) and
+        ``planner_privileged`` (the sorted ground truth it declared).
+
+    Raises:
+        mjnav.planners.PlannerError, ConfigError: As :func:`load_policy`.
+    """
+    text = str(spec)
+    if text == "random" or not is_planner_spec(text):
+        return {"planner_source": None, "planner_sha256": None, "planner_params": None, "planner_privileged": None}
+    found = resolve_planner(text)
+    return {"planner_source": found.source, "planner_sha256": found.sha256(), "planner_params": found.params(overrides),
+            "planner_privileged": sorted(found.privileged)}

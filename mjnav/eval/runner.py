@@ -289,13 +289,15 @@ def _stack_peds(peds: list[np.ndarray]) -> np.ndarray:
     return out
 
 
-def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGymEnv, Agent, int]:
+def episode_setup(args: dict[str, str], overrides: Sequence[str],
+                  planner: Sequence[str] = ()) -> tuple[NavGymEnv, Agent, int]:
     """Environment, agent and episode seed of one scripted episode (``scripts/render.py``, ``plot.py``).
 
     Args:
         args: ``task`` (default stage6), ``policy`` (default mpc_goal), and ``episode_seed`` (a raw
             episode seed) or ``seed`` (held-out scenario index, default 0).
         overrides: Task config overrides.
+        planner: ``planner.<field>=value`` parameter overrides (``["margin=0.5"]``).
 
     Raises:
         ValueError, FileNotFoundError: A bad task, override, policy or seed.
@@ -308,7 +310,7 @@ def episode_setup(args: dict[str, str], overrides: Sequence[str]) -> tuple[NavGy
 
     policy = args.get("policy", "mpc_goal")
     env = NavGymEnv(args.get("task", "stage6"), overrides=[*training_overrides(policy), *overrides] or None, seed=0)
-    agent = load_policy(policy)
+    agent = load_policy(policy, planner=planner)
     seed = int(args["episode_seed"]) if "episode_seed" in args else held_out_seed(int(args.get("seed", 0)))
     return env, agent, seed
 
@@ -473,7 +475,8 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
         _rewrite_sorted(path)
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
     return {**summary_row(summary, task, policy_name), **aggregate_social(rows),
-            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset}
+            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset,
+            "planner_privileged": ",".join(common["planner_privileged"] or ())}
 
 
 def _common(spec: EvalSpec) -> dict[str, Any]:
@@ -481,6 +484,7 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
     # deferred: mjnav.envs ~0.5 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav evaluate --help`
     from mjnav.envs.factory import resolve_config
     # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
+    from mjnav.eval.policies import planner_record
     from mjnav.policy import policy_name
 
     config = resolve_config(spec.task, spec.task_overrides or None)
@@ -488,7 +492,8 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
             "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy, spec.planner),
             "commit": git_commit(), "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
-            "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner)}
+            "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner),
+            **planner_record(spec.policy, spec.planner)}
 
 
 def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Path) -> int:
@@ -569,10 +574,11 @@ def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
 
 #: Fields every record of one evaluation shares (the rest is the episode's, from :func:`_work`).
 _COMMON_KEYS = ("task", "task_version", "policy", "policy_source", "policy_sha256", "commit", "overrides",
-                "policy_overrides", "collision", "design", "action_mode", "planner_overrides")
+                "policy_overrides", "collision", "design", "action_mode", "planner_overrides", "planner_source",
+                "planner_sha256", "planner_params", "planner_privileged")
 #: Fields that must match for an interrupted evaluation to be continued rather than started over.
 _SPEC_KEYS = ("task", "task_version", "policy_source", "policy_sha256", "commit", "overrides", "action_mode",
-              "planner_overrides")
+              "planner_overrides", "planner_source", "planner_sha256", "planner_params")
 
 
 def _append(path: Path, common: dict[str, Any], stream: Iterator[dict[str, Any]]) -> Iterator[dict[str, Any]]:
@@ -732,8 +738,8 @@ class EvaluateOptions:
     """The ``evaluate`` verb's own keys (``mjnav evaluate --help``).
 
     Attributes:
-        policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a baseline (mpc_goal,
-            mpc_gap, mpc_crowd, teb, dwa, random_jerk); required.
+        policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a planner (mpc_goal,
+            mpc_gap, mpc_crowd, teb, dwa, random_jerk, ``package.module:Class``, ``file.py:Class``); required.
         task: Bundled stage name or task YAML path.
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.
@@ -812,7 +818,7 @@ def main(argv: Sequence[str]) -> int:
         return 2
     try:
         rows = evaluate_tasks(specs, out, from_contact=from_contact)
-    except (ConfigError, FileNotFoundError, EvalError) as err:  # bad task, override or policy
+    except (ValueError, FileNotFoundError, EvalError) as err:  # bad task, override, policy or planner
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_markdown(rows), end="")

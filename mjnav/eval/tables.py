@@ -28,6 +28,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import math
+import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -40,7 +41,7 @@ from mjnav.eval.runner import _SPEC_KEYS, EvalSpec, evaluate, held_out_seed, pol
 from mjnav.eval.runner import read_jsonl as load_rows
 
 __all__ = ["TABLES", "Method", "Table", "format_social", "format_strata", "format_table", "load_rows",
-           "success_by_distance",
+           "planner_method", "success_by_distance",
            "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
@@ -185,11 +186,13 @@ def evaluation_path(out: Path, method: Method, stage: str, rule: str, action: st
 
 def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, workers: int = 2,
                run_missing: bool = True, action: str = "mean",
-               methods: Sequence[str] | None = None) -> list[dict[str, Any]]:
+               methods: Sequence[str] | None = None, planners: Sequence[str] = ()) -> list[dict[str, Any]]:
     """One row per (stage, method): our numbers under both rules and the paper's.
 
     ``methods``: only these methods (their names as in the table, e.g. ``("Ours",)``), for
-    re-running one method after retraining it; all when None.
+    re-running one method after retraining it; all when None. ``planners``: planner specs added as
+    methods (a registered name, ``package.module:Class`` or ``file.py:Class``; :func:`planner_method`);
+    a planner that reads ground truth has ``privileged`` set and is marked "(privileged)".
 
     Evaluations missing from ``out`` (or made with other episodes, seeds, policy or action mode)
     are run when ``run_missing`` is set; otherwise that rule's entry holds what an unfinished run of it
@@ -200,9 +203,10 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
         ValueError: A name in ``methods`` is not one of the table's.
     """
     # deferred: mjnav.policy ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
+    from mjnav.eval.policies import planner_record
     from mjnav.policy import BASELINES, training_overrides
 
-    chosen = _chosen_methods(TABLES[table], methods)
+    chosen = (*_chosen_methods(TABLES[table], methods), *(planner_method(p) for p in planners))
     rows = []
     for stage in TABLES[table].stages:
         for method in chosen:
@@ -210,7 +214,8 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
             mode = "mean" if baseline else action
             policy = method.policy if baseline else _policy_file(method.policy.format(stage=stage), mode)
             row: dict[str, Any] = {"stage": stage, "method": method.name, "policy": policy,
-                                   "paper": method.paper.get(stage, ()), "mode": "–" if baseline else mode}
+                                   "paper": method.paper.get(stage, ()), "mode": "–" if baseline else mode,
+                                   "privileged": bool(baseline and planner_record(policy)["planner_privileged"])}
             if not baseline and (policy is None or shipped.find(policy) is None and not Path(policy).is_file()):
                 rows.append({**row, "status": "not trained"})
                 continue
@@ -256,6 +261,25 @@ def _first(found: Sequence[dict[str, Any]], episodes: int) -> list[dict[str, Any
     return [by_index[i] for i in range(episodes) if i in by_index]
 
 
+def planner_method(spec: str) -> Method:
+    """A planner as a table method: its display name, evaluations under ``<out>/planner_<name>/``, no
+    paper numbers.
+
+    Raises:
+        mjnav.planners.PlannerError, mjnav.registry.RegistryError: A spec that does not load.
+    """
+    # deferred: mjnav.planners ~0.2 s (MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
+    from mjnav.planners import resolve_planner
+
+    name = resolve_planner(spec).name
+    return Method(name, spec, "planner_" + re.sub(r"[^\w.-]", "_", name), {})
+
+
+def _method_label(row: dict[str, Any]) -> str:
+    """The method as the tables print it: a planner reading ground truth is marked "(privileged)"."""
+    return f"{row['method']} (privileged)" if row.get("privileged") else row["method"]
+
+
 def _chosen_methods(table: Table, names: Sequence[str] | None) -> tuple[Method, ...]:
     """The table's methods named in ``names`` (all for None), in the table's order."""
     if names is None:
@@ -280,10 +304,14 @@ def _policy_file(policy: str, action: str) -> str | None:
 
 def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, policy: str, action: str) -> bool:
     """The records are ``episodes`` episodes of this policy file (path and content), action mode and seeds."""
+    # deferred: mjnav.eval.policies ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
+    from mjnav.eval.policies import planner_record
+
     if len(found) != episodes:
         return False
     first = found[0]
     return (first.get("policy_source") == policy and first.get("policy_sha256") == policy_sha256(policy)
+            and first.get("planner_sha256") == planner_record(policy)["planner_sha256"]
             and first.get("action_mode", "mean") == action
             and first.get("seed") == held_out_seed(first.get("index", 0), seed_offset))
 
@@ -353,7 +381,7 @@ def format_social(rows: Sequence[dict[str, Any]]) -> str:
     for row in rows:
         summary = ((row.get("scan") or {}).get("social") or {}) if row["status"] == "ok" else {}
         cells = [_social_cell(summary, key, fmt) for key, _, fmt in _SOCIAL_TABLE]
-        lines.append(f"| {row['stage']} | {row['method']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {row['stage']} | {_method_label(row)} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -378,12 +406,12 @@ def _format_paper(rows: Sequence[dict[str, Any]], abs_acc: bool) -> str:
     keys = ("time", "distance", "speed", "abs_acc")[: len(extra)]
     for row in rows:
         if row["status"] != "ok":
-            lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {row['status']} "
+            lines.append(f"| {row['stage']} | {_method_label(row)} | {_paper(row['paper'])} | {row['status']} "
                          f"(`{row['policy']}`) |" + " |" * (cols - 4))
             continue
         scan = row.get("scan") or {}
         metric = [_number(scan.get(k), 1 if k == "abs_acc" else 2) for k in keys]
-        lines.append(f"| {row['stage']} | {row['method']} | {_paper(row['paper'])} | {_pct(scan)} "
+        lines.append(f"| {row['stage']} | {_method_label(row)} | {_paper(row['paper'])} | {_pct(scan)} "
                      f"| {_collisions(scan)} | {_pct(row.get('contact'))} | {_collisions(row.get('contact'))} "
                      f"| {' | '.join(metric)} | {row.get('mode', 'mean')} | {_episodes(row)} |")
     return "\n".join(lines) + "\n"

@@ -8,7 +8,9 @@ learned action layer; the episode and its scoring stay the same. Pure numpy/scip
 brakes (and counts it in ``stats``) instead of raising.
 
 Planners are looked up by name in :data:`PLANNERS` (``policy=<name>``; ``planner.<field>=value``
-sets the fields of its config class). Outside packages add planners through the entry-point group
+sets the fields of its config class), or given as ``policy=package.module:Class`` or
+``policy=path/to/file.py:Class`` (:func:`mjnav.planners.resolve.resolve`; the protocol and
+an example are in the planners guide of the documentation). Outside packages add planners through the entry-point group
 ``mjnav.planners``; in one module::
 
     from mjnav.planners import PLANNERS
@@ -21,15 +23,16 @@ sets the fields of its config class). Outside packages add planners through the 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 from mjnav.planners.base import Planner, PlannerInput
 from mjnav.planners.dwa import DwaConfig, DwaPlanner
 from mjnav.planners.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
 from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
 from mjnav.planners.random import RandomActionPolicy, RandomPlanner
+from mjnav.planners.resolve import PlannerError, PlannerSource, is_spec, resolve
 from mjnav.planners.teb import TebConfig, TebPlanner
 from mjnav.registry import Registry
-from mjnav.schema import ConfigError, apply_overrides
 
 __all__ = [
     "PLANNERS",
@@ -41,13 +44,17 @@ __all__ = [
     "MpcGapPlanner",
     "MpcGoalPlanner",
     "Planner",
+    "PlannerError",
     "PlannerInput",
+    "PlannerSource",
     "RandomActionPolicy",
     "RandomPlanner",
     "TebConfig",
     "TebPlanner",
+    "is_planner_spec",
     "make_planner",
     "planner_config",
+    "resolve_planner",
 ]
 
 #: Planners by policy name; a factory takes its config class's instance (or nothing, without one).
@@ -60,35 +67,52 @@ PLANNERS.register("dwa", DwaPlanner, config=DwaConfig, source="builtin")
 PLANNERS.register("random_jerk", RandomPlanner, source="builtin")
 
 
+def resolve_planner(spec: str | Path) -> PlannerSource:
+    """The planner a spec names: a name of :data:`PLANNERS`, ``package.module:Class`` or
+    ``path/to/file.py:Class`` (:func:`mjnav.planners.resolve.resolve`).
+
+    Raises:
+        mjnav.registry.RegistryError: An unknown name (a KeyError listing the known ones and the closest).
+        PlannerError: A missing file, a failed import, no such class, not a Planner, a bad ``privileged``.
+    """
+    return resolve(spec, PLANNERS)
+
+
+def is_planner_spec(spec: str | Path) -> bool:
+    """Whether ``spec`` names a planner by its form (a name of :data:`PLANNERS`, ``module:Class`` or
+    ``file.py:Class``); nothing is imported."""
+    return is_spec(spec, PLANNERS)
+
+
 def planner_config(name: str, overrides: Sequence[str] = ()) -> object | None:
     """The parameters a planner runs with: its config class's defaults plus ``overrides``
     (None for a planner without parameters and no overrides).
 
+    Args:
+        name: A planner spec: registered name, ``package.module:Class`` or ``file.py:Class``
+            (:func:`mjnav.planners.resolve.resolve`).
+        overrides: ``["w_clearance=0.8", ...]``.
+
     Raises:
         mjnav.registry.RegistryError: An unknown planner name.
+        PlannerError: A module or file that cannot be loaded, or not a Planner.
         ConfigError: Overrides for a planner without parameters, or a bad override (unknown field,
             bad value: :func:`mjnav.schema.apply_overrides`).
     """
-    config_class = PLANNERS.get(name).config_class
-    if config_class is None:
-        if overrides:
-            configurable = [n for n in PLANNERS.names() if PLANNERS.get(n).config_class is not None]
-            raise ConfigError(f"planner overrides {list(overrides)}: {name} has no parameters "
-                              f"(configurable: {', '.join(configurable)})")
-        return None
-    return apply_overrides(config_class(), list(overrides))
+    return resolve_planner(name).config(overrides)
 
 
 def make_planner(name: str, overrides: Sequence[str] = ()) -> Planner:
-    """A fresh planner by name (one of :data:`PLANNERS`).
+    """A fresh planner by spec (a name of :data:`PLANNERS`, ``package.module:Class`` or ``file.py:Class``).
 
     Args:
-        name: Planner name.
+        name: Planner spec.
         overrides: ``["w_clearance=0.8", ...]`` applied to its parameters (:func:`planner_config`).
 
     Raises:
         mjnav.registry.RegistryError: For an unknown name (a KeyError; the message lists the known
             ones and the closest).
+        PlannerError: A module or file that cannot be loaded, or not a Planner.
         ConfigError: Overrides for a planner without parameters, or a bad override.
     """
-    return PLANNERS.make(name, planner_config(name, overrides))
+    return resolve_planner(name).make(overrides)

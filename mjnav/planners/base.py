@@ -17,25 +17,36 @@ from mjnav.geometry.region import Region
 if typing.TYPE_CHECKING:
     from mjnav.config import TaskConfig
 
-__all__ = ["Planner", "PlannerInput"]
+__all__ = ["PRIVILEGED_FIELDS", "Planner", "PlannerInput", "declared_privileged"]
+
+#: The ground truth a planner may declare in its ``privileged`` attribute (pedestrian positions,
+#: velocities, radii and goals, as the simulation's crowd model has them).
+PRIVILEGED_FIELDS = frozenset({"positions", "velocities", "radii", "goals"})
 
 
 @dataclasses.dataclass(frozen=True)
 class PlannerInput:
-    """What a non-learned planner (baseline) sees at the start of a control step.
+    """What a non-learned planner sees at the start of a control step.
+
+    Everything a robot could measure is always there. The simulator's ground truth about the
+    pedestrians (``pedestrian_*``) is there only for what the planner declared in its
+    ``privileged`` attribute (:data:`PRIVILEGED_FIELDS`); the rest is None.
 
     Attributes:
-        scan: LiDAR ranges as the robot sees them (noisy), metres.
-        angles: Beam angles, radians (beam 0 along +x, CCW).
-        position: Robot position, world frame, metres.
-        velocity: Robot velocity, m/s.
-        acceleration: Robot (reference) acceleration, m/s².
-        goal: Goal, world frame, metres.
-        region: The free-space polygon of this scan (robot frame).
+        scan: (B,) LiDAR ranges as the robot sees them (noisy), metres, clipped to [0, max range].
+        angles: (B,) beam angles, radians (beam 0 along the world +x axis, counter-clockwise).
+        position: (2,) robot position, world frame, metres.
+        velocity: (2,) robot velocity, world frame, m/s.
+        acceleration: (2,) robot (reference) acceleration, world frame, m/s².
+        goal: (2,) goal, world frame, metres.
+        region: The free-space polygon of this scan (robot-centred, world-aligned axes, metres).
         time: Time since the episode start, seconds.
-        pedestrians: (P, 3) ``[x, y, r]`` of the pedestrians, world frame, metres: the simulator's
-            ground truth, which a robot does not have; only privileged planners (``mpc_crowd``)
-            read it.
+        pedestrian_positions: (P, 2) pedestrian centres, world frame, metres (``"positions"``).
+        pedestrian_velocities: (P, 2) pedestrian velocities over the last physics substep, world
+            frame, m/s (``"velocities"``; the crowd model's own at the first step).
+        pedestrian_radii: (P,) pedestrian disc radii, metres (``"radii"``).
+        pedestrian_goals: (P, 2) where each pedestrian is heading, world frame, metres (``"goals"``;
+            NaN rows for crowd models without goals, such as the random walk).
     """
 
     scan: np.ndarray
@@ -46,11 +57,51 @@ class PlannerInput:
     goal: np.ndarray
     region: Region
     time: float
-    pedestrians: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    pedestrian_positions: np.ndarray | None = None
+    pedestrian_velocities: np.ndarray | None = None
+    pedestrian_radii: np.ndarray | None = None
+    pedestrian_goals: np.ndarray | None = None
+
+    @property
+    def pedestrians(self) -> np.ndarray:
+        """(P, 3) ``[x, y, r]`` (world frame, metres) from the declared positions and radii (NaN radii
+        when only positions were declared); (0, 3) without declared positions."""
+        if self.pedestrian_positions is None:
+            return np.zeros((0, 3))
+        positions = np.asarray(self.pedestrian_positions, dtype=np.float64).reshape(-1, 2)
+        radii = np.full(len(positions), np.nan) if self.pedestrian_radii is None else self.pedestrian_radii
+        return np.column_stack([positions, radii])
+
+
+def declared_privileged(planner: object) -> frozenset[str]:
+    """The ground truth ``planner`` (an instance or its class) declared in its ``privileged`` attribute.
+
+    Raises:
+        ValueError: ``privileged`` is not a set of names from :data:`PRIVILEGED_FIELDS`.
+    """
+    declared = getattr(planner, "privileged", frozenset())
+    if isinstance(declared, str) or not isinstance(declared, (set, frozenset, tuple, list)):
+        raise ValueError(f"planner {_name(planner)}: privileged must be a frozenset of names from "
+                         f"{sorted(PRIVILEGED_FIELDS)}, got {declared!r}")
+    unknown = set(declared) - PRIVILEGED_FIELDS
+    if unknown:
+        raise ValueError(f"planner {_name(planner)}: unknown privileged {sorted(unknown)} "
+                         f"(known: {sorted(PRIVILEGED_FIELDS)})")
+    return frozenset(declared)
+
+
+def _name(planner: object) -> str:
+    return planner.__name__ if isinstance(planner, type) else type(planner).__name__
 
 
 class Planner(typing.Protocol):
-    """A baseline controller: replaces the learned action layer, same episode and scoring."""
+    """A baseline controller: replaces the learned action layer, same episode and scoring.
+
+    Optional attributes: ``privileged`` (the ground truth it reads, a subset of
+    :data:`PRIVILEGED_FIELDS`; none when absent), ``config_class`` (the dataclass its constructor
+    takes, for ``planner.<field>=value``) and ``stats`` (a dict of integer counters recorded per
+    episode). The planners guide of the documentation describes each.
+    """
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
         """Start an episode of the task ``config`` with its own generator."""

@@ -2,7 +2,8 @@
 
 The same pipeline as :mod:`mjnav.planners.mpc_goal` (convex region, MPC, fallbacks), with ``Q_l``
 chosen from the simulator's ground truth: the pedestrians' positions and radii
-(:attr:`mjnav.planners.base.PlannerInput.pedestrians`), their velocities estimated by differencing
+(:attr:`mjnav.planners.base.PlannerInput.pedestrians`,
+declared in ``MpcCrowdPlanner.privileged``), their velocities estimated by differencing
 the positions over one control period. A robot never has this; the planner is an *oracle*: it
 shows what the action layer reaches when the crowd's motion is known, an upper reference for a
 learned policy that must infer it from the scan.
@@ -180,7 +181,15 @@ def crowd_long_point(region: Region, goal: np.ndarray, velocity: np.ndarray, ped
 
 
 class MpcCrowdPlanner(MpcGoalPlanner):
-    """Region + MPC with ``Q_l`` from the crowd's true motion (``mpc_crowd``, privileged)."""
+    """Region + MPC with ``Q_l`` from the crowd's true motion (``mpc_crowd``, privileged).
+
+    Reads the pedestrians' true positions and radii (declared in :attr:`privileged`); it estimates
+    their velocities itself by differencing the positions (:class:`CrowdTracker`).
+    """
+
+    #: The ground truth it reads (:data:`mjnav.planners.base.PRIVILEGED_FIELDS`).
+    privileged = frozenset({"positions", "radii"})
+    config_class = MpcCrowdConfig
 
     def __init__(self, config: MpcCrowdConfig | None = None) -> None:
         """``config``: :class:`MpcCrowdConfig` (defaults when None)."""

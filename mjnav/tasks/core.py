@@ -12,6 +12,7 @@ from __future__ import annotations
 import enum
 import math
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -298,12 +299,13 @@ class NavCore:
         )  # fmt: skip
 
     def plan_with(self, planner: Planner, scan: np.ndarray, position: np.ndarray, velocity: np.ndarray,
-                  accel: np.ndarray, pedestrians: np.ndarray | None = None) -> np.ndarray:
+                  accel: np.ndarray, truth: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """Jerk from a baseline planner (its action points are recorded as the robot position);
-        ``pedestrians``: (P, 3) ground-truth ``[x, y, r]`` for privileged planners (none: empty)."""
-        peds = np.zeros((0, 3)) if pedestrians is None else pedestrians
+        ``truth``: the pedestrians' ground truth the planner declared (``positions``, ``velocities``,
+        ``radii``, ``goals``: :attr:`PlannerInput.pedestrian_positions` ...), nothing else."""
+        crowd = {f"pedestrian_{key}": value for key, value in (truth or {}).items()}
         inp = PlannerInput(scan, self._angles, position.copy(), velocity.copy(), accel.copy(), self.goal.copy(),
-                           self.region, self.steps * self.config.timing.control_period, peds)
+                           self.region, self.steps * self.config.timing.control_period, **crowd)
         jerk = np.asarray(planner.act(inp), dtype=np.float64).reshape(2)
         if not np.all(np.isfinite(jerk)):
             raise ValueError(f"planner {type(planner).__name__} returned a non-finite jerk {jerk!r}")

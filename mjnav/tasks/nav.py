@@ -18,6 +18,7 @@ from dm_control.composer.observation import observable
 from dm_env import specs
 
 from mjnav.geometry.raycast import beam_angles, cast_rays
+from mjnav.planners.base import declared_privileged
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
 from mjnav.tasks.privileged import CrowdTracker, critic_size, pedestrian_features
@@ -103,9 +104,25 @@ class CrowdNavTask(composer.Task):
         if self.planner is None:
             jerk = self.core.plan(action, p, v, a)
         else:
-            jerk = self.core.plan_with(self.planner, self._scan, p, v, a, self.sim.pedestrian_circles())
+            jerk = self.core.plan_with(self.planner, self._scan, p, v, a, self._crowd_truth())
         self._t_physics = time.perf_counter()  # the command starts the period (crowd, tracking)
         self.sim.apply_command(physics, jerk, state)
+
+    def _crowd_truth(self) -> dict[str, np.ndarray]:
+        """The pedestrians' ground truth the planner declared (``privileged``), read-only copies."""
+        declared = declared_privileged(self.planner)
+        if not declared:
+            return {}
+        circles = self.sim.pedestrian_circles()
+        truth = {"positions": circles[:, :2], "radii": circles[:, 2]}
+        if "velocities" in declared:
+            truth["velocities"] = self.sim.pedestrian_velocities()
+        if "goals" in declared:
+            truth["goals"] = self.sim.pedestrian_goals()
+        chosen = {key: truth[key] for key in declared}
+        for value in chosen.values():
+            value.flags.writeable = False  # the planner reads them; writing would change nothing anyway
+        return chosen
 
     def before_substep(self, physics, action, random_state) -> None:
         """Move the pedestrians and apply the tracking force."""

@@ -32,7 +32,8 @@ class EpisodeOptions:
 
     Attributes:
         task: Bundled stage name or task YAML path.
-        policy: A run folder, policy file, shipped policy or baseline name.
+        policy: A run folder, policy file, shipped policy or planner (a registered name,
+            ``package.module:Class`` or ``path/to/file.py:Class``).
         seed: Held-out scenario index (episode seed 2**32 + seed, as in evaluation).
         episode_seed: A raw episode seed instead of ``seed``.
         out: Figure file.
@@ -107,8 +108,8 @@ def _grammar(options: type, prefixes: tuple[str, ...]) -> Grammar:
 
 
 def episode_grammar() -> Grammar:
-    """:class:`EpisodeOptions` and ``task.*`` overrides."""
-    return _grammar(EpisodeOptions, ("task",))
+    """:class:`EpisodeOptions`, ``task.*`` overrides and ``planner.*`` parameters."""
+    return _grammar(EpisodeOptions, ("task", "planner"))
 
 
 def compare_grammar() -> Grammar:
@@ -157,13 +158,13 @@ def episode(parsed: Parsed, argv: list[str]) -> int:
 
     opts: EpisodeOptions = parsed.options
     try:
-        env, agent, seed = episode_setup(setup_args(opts), parsed.task)
+        env, agent, seed = episode_setup(setup_args(opts), parsed.task, parsed.planner)
         try:
             instants = [float(t) for t in opts.plans.split(",")] if opts.plans else None
         except ValueError:
             raise ValueError(f"plans=: comma-separated times in s, got {opts.plans!r}") from None
         panel, metrics = _panel(env, agent, seed, instants)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, KeyError) as err:  # KeyError: an unknown planner name
         return _fail(err)
     panel["title"] += f" · seed {seed}"
     out = plot_episode(out=opts.out, dt=env.config.timing.control_period, **panel)
@@ -192,7 +193,7 @@ def compare(parsed: Parsed, argv: list[str]) -> int:
                 lines.append(f"{task} {agent.name}: {metrics.outcome}, {metrics.time_s:.1f} s")
                 env.close()
             rows.append(row)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, KeyError) as err:  # KeyError: an unknown planner name
         return _fail(err)
     print("\n".join([f"{plot_grid(rows, opts.out)}:", *lines]))
     return 0
@@ -208,7 +209,7 @@ def curve(parsed: Parsed, argv: list[str]) -> int:
         return _fail(ValueError("curve needs run=RUN_DIR"))
     try:
         print(plot_learning_curve(opts.run, opts.out, opts.smooth))
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, KeyError) as err:  # KeyError: an unknown planner name
         return _fail(err)
     return 0
 
@@ -217,7 +218,7 @@ def distance(parsed: Parsed, argv: list[str]) -> int:
     """Plot and tabulate success by start-goal distance; returns the exit code."""
     try:
         print(_distance(parsed.options))
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, KeyError) as err:  # KeyError: an unknown planner name
         return _fail(err)
     return 0
 

@@ -20,7 +20,8 @@ class RenderOptions:
 
     Attributes:
         task: Bundled stage name or task YAML path.
-        policy: A run folder, policy file, shipped policy or baseline name.
+        policy: A run folder, policy file, shipped policy or planner (a registered name,
+            ``package.module:Class`` or ``path/to/file.py:Class``).
         seed: Held-out scenario index (episode seed 2**32 + seed, as in evaluation).
         episode_seed: A raw episode seed instead of ``seed``.
         out: MP4 file to write.
@@ -44,8 +45,9 @@ class RenderOptions:
 
 
 def grammar() -> Grammar:
-    """:class:`RenderOptions` and ``task.*`` overrides. The GL backend is EGL, else OSMesa (``MUJOCO_GL`` overrides)."""
-    return Grammar(RenderOptions, ("task",), {}, TASK_SECTIONS)
+    """:class:`RenderOptions`, ``task.*`` overrides and ``planner.*`` parameters. The GL backend is EGL,
+    else OSMesa (``MUJOCO_GL`` overrides)."""
+    return Grammar(RenderOptions, ("task", "planner"), {}, TASK_SECTIONS)
 
 
 def setup_args(opts: RenderOptions | object) -> dict[str, object]:
@@ -67,9 +69,9 @@ def run(parsed: Parsed, argv: list[str]) -> int:
     from mjnav.eval.render import RenderConfig, render_episode
 
     try:  # bad task, override, policy or value: one line, before anything is rendered
-        env, agent, seed = episode_setup(setup_args(opts), parsed.task)
+        env, agent, seed = episode_setup(setup_args(opts), parsed.task, parsed.planner)
         config = RenderConfig(opts.view, opts.width, opts.height, opts.frames, opts.rays)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, KeyError) as err:  # KeyError: an unknown planner name
         return _error(err)
     result = render_episode(env, agent, seed, opts.out, config)
     print(f"{result['path']}: {result['frames']} frames, outcome {result['outcome']} ({result['backend']})")

@@ -34,6 +34,8 @@ class TablesOptions:
         action: ``mean``, ``expected`` or ``sample`` (how a learned policy acts).
         methods: Comma-separated methods to keep (names as the table prints them); empty: all.
         social: Add a table of the social-navigation metrics (:mod:`mjnav.eval.social`).
+        planners: Comma-separated planners added as methods: registered names, ``package.module:Class``
+            or ``path/to/file.py:Class``; those reading ground truth are marked "(privileged)".
     """
 
     table: int = 2
@@ -45,6 +47,7 @@ class TablesOptions:
     action: str = "mean"
     methods: str = ""
     social: bool = False
+    planners: str = ""
 
 
 def grammar() -> Grammar:
@@ -65,9 +68,11 @@ def run(parsed: Parsed, argv: list[str]) -> int:
             raise ConfigError(f"table: {opts.table} is not available (known: {sorted(TABLES)})")
         names = [n.strip() for n in opts.methods.split(",") if n.strip()] or None
         workers = os.cpu_count() or 1 if opts.workers is None else opts.workers
+        planners = [p.strip() for p in opts.planners.split(",") if p.strip()]
         rows = table_rows(opts.table, Path(opts.out), opts.episodes, opts.seed_offset, workers, opts.run,
-                          opts.action, names)
-    except (ConfigError, ValueError, FileNotFoundError, EvalError) as err:  # EvalError: a file of another evaluation
+                          opts.action, names, planners)
+    # EvalError: a file of another evaluation; KeyError: an unknown planner name
+    except (ConfigError, ValueError, KeyError, FileNotFoundError, EvalError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_table(rows, TABLES[opts.table].abs_acc, opts.social), end="")

@@ -10,6 +10,9 @@ import pytest
 
 from mjnav.eval import tables
 from mjnav.eval.runner import policy_sha256
+from mjnav.planners import resolve_planner
+
+TEB_SHA = resolve_planner("teb").sha256()  # what a teb evaluation records as planner_sha256
 
 
 def test_wilson_interval_brackets_the_rate() -> None:
@@ -98,8 +101,8 @@ def test_an_unfinished_evaluation_shows_its_episodes_so_far(tmp_path: Path) -> N
     of the other rule is not."""
     folder = tmp_path / "teb"
     folder.mkdir()
-    lines = [{"policy_source": "teb", "policy_sha256": policy_sha256("teb"), "index": i, "seed": 2**32 + i,
-              "collision": "scan", "action_mode": "mean",
+    lines = [{"policy_source": "teb", "policy_sha256": policy_sha256("teb"), "planner_sha256": TEB_SHA,
+              "index": i, "seed": 2**32 + i, "collision": "scan", "action_mode": "mean",
               "outcome": "success" if i % 2 else "collision",
               "metrics": {"time_s": 4.0, "distance_m": 4.0, "mean_speed": 1.0, "abs_acc_sum": 5.0}} for i in range(6)]
     (folder / "stage6.jsonl").write_text("".join(json.dumps(x) + "\n" for x in lines))
@@ -129,8 +132,8 @@ def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
     for rule in tables.RULES:
         path = tmp_path / "teb" / f"stage6_{rule}.jsonl"
         path.parent.mkdir(parents=True, exist_ok=True)
-        lines = [{"policy_source": "teb", "policy_sha256": policy_sha256("teb"), "index": i, "seed": 2**32 + i,
-                  "collision": rule, "action_mode": "mean", "outcome": "success",
+        lines = [{"policy_source": "teb", "policy_sha256": policy_sha256("teb"), "planner_sha256": TEB_SHA,
+                  "index": i, "seed": 2**32 + i, "collision": rule, "action_mode": "mean", "outcome": "success",
                   "metrics": {"time_s": 4.0, "distance_m": 4.0, "mean_speed": 1.0}} for i in range(3)]
         path.write_text("".join(json.dumps(x) + "\n" for x in lines))
     assert tables.table_rows(4, tmp_path, episodes=3, run_missing=False)[0]["scan"]["success"] == 3
