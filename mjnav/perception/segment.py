@@ -5,7 +5,9 @@ along world +x, spec §2). Distances are metres, angles radians. The pipeline is
 
 1. points: each beam's hit in the world; beams at (or within ``invalid_margin`` of) the maximum
    range hit nothing;
-2. clusters: runs of consecutive hit beams whose ranges differ by at most ``range_jump``
+2. clusters: runs of consecutive hit beams whose ranges differ by at most ``range_jump`` plus
+   ``range_jump_per_metre`` times the nearer range (an adaptive breakpoint: a wall seen at a
+   grazing angle steps further between beams far away)
    (the scan is unrolled to start at a discontinuity, so a cluster may cross beam 0);
 3. structure: iterative end-point fit (split at the farthest point from the chord while it is
    above ``line_tolerance``); line pieces at least ``line_min_length`` long are walls or
@@ -20,7 +22,9 @@ along world +x, spec §2). Distances are metres, angles radians. The pipeline is
 5. static map: every hit counts in its cell of a world grid kept over the episode; a piece
    whose points mostly lie in cells hit in ``static_hits`` scans or more is structure (walls
    and obstacle corners are hit scan after scan; a walking pedestrian's surface moves on);
-6. circles: a Kasa (algebraic) fit gives the direction to the centre, the radius is the mean of
+6. shape: a piece hollow towards the robot by more than ``line_tolerance`` (the inside of a
+   corner) is structure;
+7. circles: a Kasa (algebraic) fit gives the direction to the centre, the radius is the mean of
    the fitted and the chord-based radius clamped to the configured range, and the centre sits
    behind the points' centroid by the depth of a beam-sampled arc.
 """
@@ -36,13 +40,19 @@ __all__ = ["detect_kernel"]
 
 
 @njit(cache=True)
-def _unroll(ranges: np.ndarray, limit: float, jump: float) -> tuple[np.ndarray, np.ndarray]:
+def _jumps(r0: float, r1: float, jump: float, per_metre: float) -> bool:
+    """Whether neighbouring ranges ``r0``, ``r1`` (m) are a discontinuity (adaptive breakpoint)."""
+    return abs(r1 - r0) > jump + per_metre * min(r0, r1)
+
+
+@njit(cache=True)
+def _unroll(ranges: np.ndarray, limit: float, jump: float, per_metre: float) -> tuple[np.ndarray, np.ndarray]:
     """Beam order starting at a discontinuity, and each unrolled beam's validity."""
     n = ranges.shape[0]
     start = 0
     for i in range(n):
         j = (i - 1) % n
-        if ranges[i] >= limit or ranges[j] >= limit or abs(ranges[i] - ranges[j]) > jump:
+        if ranges[i] >= limit or ranges[j] >= limit or _jumps(ranges[j], ranges[i], jump, per_metre):
             start = i
             break
     order = np.empty(n, np.int64)
@@ -154,31 +164,34 @@ def _fit_circle(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, 
 @njit(cache=True)
 def _bump_depth(px: np.ndarray, py: np.ndarray, structure: np.ndarray, cs: int, ce: int, a: int, b: int,
                 ox: float, oy: float) -> float:
-    """Mean height of run ``a..b`` above the structure line it interrupts, towards the robot, m.
+    """Mean height of piece ``a..b`` above the structure line beside it, towards the robot, m.
 
-    The line joins the structure points either side of the run, or extends the structure piece on
-    its one structure side; a run with no structure neighbour returns infinity (free-standing).
+    The line is a total-least-squares fit to the structure points among the twelve either side of
+    the piece (within its cluster); a piece with fewer than two such points returns infinity
+    (free-standing).
     """
-    left = a - 1 >= cs and structure[a - 1]
-    right = b + 1 <= ce and structure[b + 1]
-    if left and right:
-        i, j = a - 1, b + 1
-    elif left:
-        i, j = max(cs, a - 6), a - 1
-    elif right:
-        i, j = b + 1, min(ce, b + 6)
-    else:
+    n, mx, my = 0, 0.0, 0.0
+    for k in range(max(cs, a - 12), min(ce, b + 12) + 1):
+        if (k < a or k > b) and structure[k]:
+            n += 1
+            mx += px[k]
+            my += py[k]
+    if n < 2:
         return np.inf
-    ex, ey = px[j] - px[i], py[j] - py[i]
-    length = math.hypot(ex, ey)
-    if length < 1e-9:
-        return np.inf
-    nx, ny = -ey / length, ex / length
-    if nx * (ox - px[i]) + ny * (oy - py[i]) < 0.0:
+    mx, my = mx / n, my / n
+    sxx = sxy = syy = 0.0
+    for k in range(max(cs, a - 12), min(ce, b + 12) + 1):
+        if (k < a or k > b) and structure[k]:
+            sxx += (px[k] - mx) ** 2
+            sxy += (px[k] - mx) * (py[k] - my)
+            syy += (py[k] - my) ** 2
+    angle = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # direction of largest spread
+    nx, ny = -math.sin(angle), math.cos(angle)
+    if nx * (ox - mx) + ny * (oy - my) < 0.0:
         nx, ny = -nx, -ny
     total = 0.0
     for k in range(a, b + 1):
-        total += nx * (px[k] - px[i]) + ny * (py[k] - py[i])
+        total += nx * (px[k] - mx) + ny * (py[k] - my)
     return total / (b - a + 1)
 
 
@@ -210,10 +223,33 @@ def _static_fraction(px: np.ndarray, py: np.ndarray, a: int, b: int, grid: np.nd
 
 
 @njit(cache=True)
-def _emit_run(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, ox: float, oy: float,
-              spacing: float, params: np.ndarray, stack: np.ndarray, grid: np.ndarray, out: np.ndarray,
-              count: int) -> int:
-    """Split run ``a..b`` into pedestrians and append their circles to ``out``; the new count."""
+def _hollow(px: np.ndarray, py: np.ndarray, a: int, b: int, ox: float, oy: float) -> float:
+    """Farthest any point of ``a..b`` lies behind the chord ``a``–``b`` (away from the robot), m.
+
+    A pedestrian's arc bulges towards the robot; a piece hollow by more than the line tolerance
+    is the inside of a corner.
+    """
+    ex, ey = px[b] - px[a], py[b] - py[a]
+    length = math.sqrt(ex * ex + ey * ey)
+    if length < 1e-9:
+        return 0.0
+    nx, ny = -ey / length, ex / length
+    if nx * (ox - px[a]) + ny * (oy - py[a]) > 0.0:  # normal away from the robot
+        nx, ny = -nx, -ny
+    worst = 0.0
+    for k in range(a + 1, b):
+        worst = max(worst, nx * (px[k] - px[a]) + ny * (py[k] - py[a]))
+    return worst
+
+
+@njit(cache=True)
+def _emit_run(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, cs: int, ce: int, ox: float,
+              oy: float, spacing: float, params: np.ndarray, structure: np.ndarray, stack: np.ndarray,
+              grid: np.ndarray, out: np.ndarray, count: int) -> int:
+    """Split run ``a..b`` of cluster ``cs..ce`` into pedestrians and append their circles to ``out``.
+
+    Returns the new count.
+    """
     r_min, r_max, split_margin, max_width, min_points = params[4], params[5], params[6], params[7], params[8]
     notch_depth = params[9]
     stack[0, 0], stack[0, 1] = a, b
@@ -234,7 +270,8 @@ def _emit_run(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, ox
                 continue
             if wide and width > max_width:
                 continue
-        if _static_fraction(px, py, i, j, grid, params) > 0.5:
+        if (_static_fraction(px, py, i, j, grid, params) > 0.5 or _hollow(px, py, i, j, ox, oy) > params[2]
+                or _bump_depth(px, py, structure, cs, ce, i, j, ox, oy) < params[10]):
             continue
         if count < out.shape[0]:
             _fit_circle(px, py, rr, i, j, ox, oy, spacing, r_min, r_max, out[count])
@@ -253,7 +290,7 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
         ox, oy: Robot (scan origin) position in the world, metres.
         params: ``[limit, range_jump, line_tolerance, line_min_length, r_min, r_max, split_margin,
             max_width, min_points, notch_depth, bump_depth, detect_range, 1 / cell, grid x0, grid y0,
-            static_hits]`` (metres except the counts ``min_points`` and ``static_hits``); ``limit`` is the range at and above which a beam hit nothing; pieces
+            static_hits, range_jump_per_metre]`` (metres except the counts ``min_points`` and ``static_hits``); ``limit`` is the range at and above which a beam hit nothing; pieces
             whose nearest point lies beyond ``detect_range`` are segmented but not reported.
         grid: (G, G) int32 hit counts per world cell, updated in place (the robot's own static map).
         out: (D, 3) buffer for ``[x, y, r]`` rows, world metres.
@@ -264,7 +301,7 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
     n = ranges.shape[0]
     spacing = 2.0 * math.pi / n
     limit, jump, tol, min_len = params[0], params[1], params[2], params[3]
-    order, valid = _unroll(ranges, limit, jump)
+    order, valid = _unroll(ranges, limit, jump, params[16])
     px, py, rr = np.empty(n), np.empty(n), np.empty(n)
     x0, y0, inv = params[13], params[14], params[12]
     for k in range(n):
@@ -283,7 +320,7 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
             k += 1
             continue
         end = k
-        while end + 1 < n and valid[end + 1] and abs(rr[end + 1] - rr[end]) <= jump:
+        while end + 1 < n and valid[end + 1] and not _jumps(rr[end], rr[end + 1], jump, params[16]):
             end += 1
         _mark_lines(px, py, k, end, tol, min_len, structure, stack)
         run = k
@@ -294,8 +331,8 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
             stop = run
             while stop + 1 <= end and not structure[stop + 1]:
                 stop += 1
-            if _bump_depth(px, py, structure, k, end, run, stop, ox, oy) >= params[10]:
-                count = _emit_run(px, py, rr, run, stop, ox, oy, spacing, params, stack, grid, out, count)
+            count = _emit_run(px, py, rr, run, stop, k, end, ox, oy, spacing, params, structure, stack, grid,
+                              out, count)
             run = stop + 1
         k = end + 1
     return count

@@ -33,6 +33,7 @@ class TrackerConfig:
         detect_range: Pieces of the scan whose nearest beam is farther than this are not reported
             (they are still segmented, so far walls stay walls), m.
         range_jump: Neighbouring beams whose ranges differ by more than this start a new cluster, m.
+        range_jump_per_metre: Growth of that threshold with range, m per m of range.
         line_tolerance: Iterative end-point fit splits a piece while a point is farther than this
             from its chord, m.
         line_min_length: A straight piece this long or longer is structure, not a pedestrian, m.
@@ -64,12 +65,13 @@ class TrackerConfig:
     noise_std: float = 0.05
     detect_range: float = 8.0
     range_jump: float = 0.3
-    line_tolerance: float = 0.15
+    range_jump_per_metre: float = 0.03
+    line_tolerance: float = 0.2
     line_min_length: float = 0.75
     radius: tuple[float, float] = (0.1, 0.4)
     split_margin: float = 0.15
     notch_depth: float = 0.1
-    bump_depth: float = 0.1
+    bump_depth: float = 0.12
     max_width: float = 1.2
     min_points: int = 2
     map_cell: float = 0.15
@@ -80,8 +82,8 @@ class TrackerConfig:
     initial_speed_std: float = 1.0
     gate: float = 0.8
     gate_chi2: float = 16.0
-    confirm_hits: int = 3
-    confirm_window: int = 5
+    confirm_hits: int = 2
+    confirm_window: int = 3
     max_misses: int = 5
     static_age: int = 20
     static_distance: float = 0.3
@@ -97,7 +99,7 @@ class TrackerConfig:
         lo, hi = self.radius
         if not 0.0 < lo <= hi:
             raise ValueError(f"tracker.radius: {self.radius} must be 0 < min <= max")
-        for name in ("split_margin", "notch_depth", "bump_depth"):
+        for name in ("split_margin", "notch_depth", "bump_depth", "range_jump_per_metre"):
             if getattr(self, name) < 0.0:
                 raise ValueError(f"tracker.{name}: {getattr(self, name)} must be >= 0")
         for name in ("min_points", "confirm_hits", "confirm_window", "max_misses", "static_age", "capacity",
@@ -160,7 +162,7 @@ class Tracker:
         self._detect_params = np.array([limit, c.range_jump, c.line_tolerance, c.line_min_length, *c.radius,
                                         c.split_margin, c.max_width, c.min_points,
                                         c.notch_depth, c.bump_depth, c.detect_range, 1.0 / c.map_cell,
-                                        0.0, 0.0, c.static_hits], dtype=np.float64)
+                                        0.0, 0.0, c.static_hits, c.range_jump_per_metre], dtype=np.float64)
         self._filter_params = np.array([c.accel_std, c.measurement_std, c.initial_speed_std, c.gate, c.gate_chi2,
                                         c.confirm_hits, c.confirm_window, c.max_misses], dtype=np.float64)
         self._detections = np.zeros((c.capacity, 3))
