@@ -46,7 +46,7 @@ class TrackArrays:
                    np.full(capacity, -1, np.int64), np.zeros((capacity, 3), np.int64), np.zeros((capacity, 4)))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _predict(state: np.ndarray, cov: np.ndarray, t: int, dt: float, q: float) -> None:
     """Constant-velocity prediction with white-acceleration spectral density ``q`` (m²/s³)."""
     for ax in range(2):
@@ -57,7 +57,7 @@ def _predict(state: np.ndarray, cov: np.ndarray, t: int, dt: float, q: float) ->
         cov[t, ax, 2] = vv + q * dt
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _correct(state: np.ndarray, cov: np.ndarray, t: int, zx: float, zy: float, r2: float) -> None:
     """Kalman update of slot ``t`` with a position measurement of variance ``r2`` (m²)."""
     for ax in range(2):
@@ -73,7 +73,7 @@ def _correct(state: np.ndarray, cov: np.ndarray, t: int, zx: float, zy: float, r
         cov[t, ax, 2] = vv - kv * pv
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _gated_pairs(state: np.ndarray, cov: np.ndarray, status: np.ndarray, det: np.ndarray, n: int,
                  r2: float, chi2: float, gate: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(cost, track, detection) of pairs inside both gates; tentative tracks cost 1000 more."""
@@ -96,7 +96,7 @@ def _gated_pairs(state: np.ndarray, cov: np.ndarray, status: np.ndarray, det: np
     return cost[:m], ti[:m], di[:m]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _birth(arrays_state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: np.ndarray,
            counts: np.ndarray, shape: np.ndarray, det_row: np.ndarray, r2: float, v2: float,
            next_id: int) -> int:
@@ -114,7 +114,7 @@ def _birth(arrays_state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: n
     return next_id
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bookkeep(status: np.ndarray, counts: np.ndarray, t: int, confirm_hits: int, window: int,
               max_misses: int) -> None:
     """Confirmation (M hits within the first N steps) and deletion (K misses) of slot ``t``."""
@@ -128,7 +128,7 @@ def _bookkeep(status: np.ndarray, counts: np.ndarray, t: int, confirm_hits: int,
         status[t] = FREE
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update_kernel(state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: np.ndarray,
                   counts: np.ndarray, shape: np.ndarray, det: np.ndarray, n: int, dt: float,
                   params: np.ndarray, next_id: int) -> int:

@@ -39,19 +39,19 @@ from numba import njit
 __all__ = ["detect_kernel"]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _jumps(r0: float, r1: float, jump: float, per_metre: float) -> bool:
     """Whether neighbouring ranges ``r0``, ``r1`` (m) are a discontinuity (adaptive breakpoint)."""
     return abs(r1 - r0) > jump + per_metre * min(r0, r1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _unroll(ranges: np.ndarray, limit: float, jump: float, per_metre: float) -> tuple[np.ndarray, np.ndarray]:
     """Beam order starting at a discontinuity, and each unrolled beam's validity."""
     n = ranges.shape[0]
     start = 0
     for i in range(n):
-        j = (i - 1) % n
+        j = i - 1 if i > 0 else n - 1
         if ranges[i] >= limit or ranges[j] >= limit or _jumps(ranges[j], ranges[i], jump, per_metre):
             start = i
             break
@@ -64,7 +64,7 @@ def _unroll(ranges: np.ndarray, limit: float, jump: float, per_metre: float) -> 
     return order, valid
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _mark_lines(px: np.ndarray, py: np.ndarray, a: int, b: int, tol: float, min_len: float,
                 structure: np.ndarray, stack: np.ndarray) -> None:
     """Iterative end-point fit of points ``a..b``; marks points of long line pieces as structure."""
@@ -90,7 +90,7 @@ def _mark_lines(px: np.ndarray, py: np.ndarray, a: int, b: int, tol: float, min_
             structure[i:j + 1] = True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _smooth(rr: np.ndarray, i: int, a: int, b: int) -> float:
     """Mean range of beams ``i-1..i+1`` clipped to the run ``a..b``."""
     lo, hi = max(a, i - 1), min(b, i + 1)
@@ -100,7 +100,7 @@ def _smooth(rr: np.ndarray, i: int, a: int, b: int) -> float:
     return total / (hi - lo + 1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _notch(rr: np.ndarray, a: int, b: int) -> tuple[int, float]:
     """Deepest concavity of run ``a..b`` (two points kept either side): (index or -1, depth in m).
 
@@ -114,13 +114,13 @@ def _notch(rr: np.ndarray, a: int, b: int) -> tuple[int, float]:
     return at, best
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _width(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, spacing: float) -> float:
     """Chord of run ``a..b`` plus one beam footprint, metres."""
     return math.hypot(px[b] - px[a], py[b] - py[a]) + 0.5 * (rr[a] + rr[b]) * spacing
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _fit_circle(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, ox: float, oy: float,
                 spacing: float, r_min: float, r_max: float, out: np.ndarray) -> None:
     """``out = [x, y, r]``: the circle behind points ``a..b`` seen from ``(ox, oy)``."""
@@ -161,7 +161,7 @@ def _fit_circle(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, 
     out[2] = radius
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _bump_depth(px: np.ndarray, py: np.ndarray, structure: np.ndarray, cs: int, ce: int, a: int, b: int,
                 ox: float, oy: float) -> float:
     """Mean height of piece ``a..b`` above the structure line beside it, towards the robot, m.
@@ -195,13 +195,13 @@ def _bump_depth(px: np.ndarray, py: np.ndarray, structure: np.ndarray, cs: int, 
     return total / (b - a + 1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _cell(x: float, y: float, grid: np.ndarray, params: np.ndarray) -> tuple[int, int]:
     """Grid cell of world point ``(x, y)``, or (-1, -1) outside the grid (``params[12]`` = 1 / cell)."""
     return _cell_of(x, y, params[13], params[14], params[12], grid.shape[0], grid.shape[1])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _cell_of(x: float, y: float, x0: float, y0: float, inv: float, nx: int, ny: int) -> tuple[int, int]:
     """Cell ``(i, j)`` of ``(x, y)`` in an ``nx`` × ``ny`` grid from ``(x0, y0)``, or (-1, -1)."""
     fx = (x - x0) * inv  # truncation is floor here: negatives are outside
@@ -211,7 +211,7 @@ def _cell_of(x: float, y: float, x0: float, y0: float, inv: float, nx: int, ny: 
     return int(fx), int(fy)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _static_fraction(px: np.ndarray, py: np.ndarray, a: int, b: int, grid: np.ndarray, params: np.ndarray) -> float:
     """Share of points ``a..b`` in cells hit in at least ``static_hits`` scans so far."""
     static = 0
@@ -222,7 +222,7 @@ def _static_fraction(px: np.ndarray, py: np.ndarray, a: int, b: int, grid: np.nd
     return static / (b - a + 1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _hollow(px: np.ndarray, py: np.ndarray, a: int, b: int, ox: float, oy: float) -> float:
     """Farthest any point of ``a..b`` lies behind the chord ``a``–``b`` (away from the robot), m.
 
@@ -242,7 +242,7 @@ def _hollow(px: np.ndarray, py: np.ndarray, a: int, b: int, ox: float, oy: float
     return worst
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _emit_run(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, cs: int, ce: int, ox: float,
               oy: float, spacing: float, params: np.ndarray, structure: np.ndarray, stack: np.ndarray,
               grid: np.ndarray, out: np.ndarray, count: int) -> int:
@@ -260,9 +260,9 @@ def _emit_run(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, cs
         if j - i + 1 < min_points or rr[i:j + 1].min() > params[11]:
             continue
         width = _width(px, py, rr, i, j, spacing)
-        at, depth = _notch(rr, i, j)
         wide = width > 2.0 * r_max + split_margin
-        if wide or (depth > notch_depth and width > 4.0 * r_min):
+        at, depth = _notch(rr, i, j) if width > 4.0 * r_min else (-1, 0.0)
+        if wide or depth > notch_depth:
             if at >= 0 and top + 2 <= stack.shape[0]:
                 stack[top, 0], stack[top, 1] = i, at
                 stack[top + 1, 0], stack[top + 1, 1] = at + 1, j
@@ -279,7 +279,7 @@ def _emit_run(px: np.ndarray, py: np.ndarray, rr: np.ndarray, a: int, b: int, cs
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: float, oy: float,
                   params: np.ndarray, grid: np.ndarray, out: np.ndarray) -> int:
     """Pedestrian circles in one scan.

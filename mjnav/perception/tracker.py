@@ -132,7 +132,7 @@ class Track:
     covariance: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _step_kernel(scan: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, x: float, y: float, dt: float,
                  detect_params: np.ndarray, grid: np.ndarray, detections: np.ndarray, filter_params: np.ndarray,
                  state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: np.ndarray, counts: np.ndarray,
