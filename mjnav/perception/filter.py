@@ -8,7 +8,6 @@ Units: metres, seconds, m/s.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -19,31 +18,40 @@ __all__ = ["FREE", "TENTATIVE", "CONFIRMED", "TrackArrays", "update_kernel"]
 FREE, TENTATIVE, CONFIRMED = 0, 1, 2
 
 
-@dataclasses.dataclass
 class TrackArrays:
-    """Fixed-capacity track slots (T = capacity).
+    """Fixed-capacity track slots (T = capacity) in two arrays (few arguments per kernel call).
+
+    ``floats`` (T, 14) holds ``state`` (columns 0-3), ``cov`` (4-9) and ``shape`` (10-13);
+    ``ints`` (T, 5) holds ``status`` (0), ``ids`` (1) and ``counts`` (2-4). The views:
 
     Attributes:
         state: (T, 4) ``[x, y, vx, vy]``, world metres and m/s.
-        cov: (T, 2, 3) per axis ``[var pos (m²), cov pos-vel (m²/s), var vel (m²/s²)]``.
+        cov: (T, 6) per axis x then y ``[var pos (m²), cov pos-vel (m²/s), var vel (m²/s²)]``.
+        shape: (T, 4) ``[radius (m), origin x, origin y, largest distance from origin (m)]``.
         status: (T,) FREE, TENTATIVE or CONFIRMED.
         ids: (T,) track identities (never reused within an episode).
         counts: (T, 3) ``[age (steps), hits, consecutive misses]``.
-        shape: (T, 4) ``[radius (m), origin x, origin y, largest distance from origin (m)]``.
     """
 
-    state: np.ndarray
-    cov: np.ndarray
-    status: np.ndarray
-    ids: np.ndarray
-    counts: np.ndarray
-    shape: np.ndarray
-
-    @classmethod
-    def empty(cls, capacity: int) -> TrackArrays:
+    def __init__(self, capacity: int) -> None:
         """All slots free."""
-        return cls(np.zeros((capacity, 4)), np.zeros((capacity, 2, 3)), np.zeros(capacity, np.int64),
-                   np.full(capacity, -1, np.int64), np.zeros((capacity, 3), np.int64), np.zeros((capacity, 4)))
+        self.floats = np.zeros((capacity, 14))
+        self.ints = np.zeros((capacity, 5), dtype=np.int64)
+        self.ints[:, 1] = -1
+        self.state, self.cov, self.shape = split_floats(self.floats)
+        self.status, self.ids, self.counts = split_ints(self.ints)
+
+
+@njit(cache=True, error_model="numpy")
+def split_floats(floats: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(state, cov, shape)`` views of the float slots."""
+    return floats[:, 0:4], floats[:, 4:10], floats[:, 10:14]
+
+
+@njit(cache=True, error_model="numpy")
+def split_ints(ints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(status, ids, counts)`` views of the integer slots."""
+    return ints[:, 0], ints[:, 1], ints[:, 2:5]
 
 
 @njit(cache=True, error_model="numpy")
@@ -51,10 +59,10 @@ def _predict(state: np.ndarray, cov: np.ndarray, t: int, dt: float, q: float) ->
     """Constant-velocity prediction with white-acceleration spectral density ``q`` (m²/s³)."""
     for ax in range(2):
         state[t, ax] += dt * state[t, 2 + ax]
-        pp, pv, vv = cov[t, ax, 0], cov[t, ax, 1], cov[t, ax, 2]
-        cov[t, ax, 0] = pp + 2.0 * dt * pv + dt * dt * vv + q * dt ** 3 / 3.0
-        cov[t, ax, 1] = pv + dt * vv + q * dt * dt / 2.0
-        cov[t, ax, 2] = vv + q * dt
+        pp, pv, vv = cov[t, 3 * ax], cov[t, 3 * ax + 1], cov[t, 3 * ax + 2]
+        cov[t, 3 * ax] = pp + 2.0 * dt * pv + dt * dt * vv + q * dt ** 3 / 3.0
+        cov[t, 3 * ax + 1] = pv + dt * vv + q * dt * dt / 2.0
+        cov[t, 3 * ax + 2] = vv + q * dt
 
 
 @njit(cache=True, error_model="numpy")
@@ -62,15 +70,15 @@ def _correct(state: np.ndarray, cov: np.ndarray, t: int, zx: float, zy: float, r
     """Kalman update of slot ``t`` with a position measurement of variance ``r2`` (m²)."""
     for ax in range(2):
         z = zx if ax == 0 else zy
-        pp, pv, vv = cov[t, ax, 0], cov[t, ax, 1], cov[t, ax, 2]
+        pp, pv, vv = cov[t, 3 * ax], cov[t, 3 * ax + 1], cov[t, 3 * ax + 2]
         s = pp + r2
         kp, kv = pp / s, pv / s
         y = z - state[t, ax]
         state[t, ax] += kp * y
         state[t, 2 + ax] += kv * y
-        cov[t, ax, 0] = (1.0 - kp) * pp
-        cov[t, ax, 1] = (1.0 - kp) * pv
-        cov[t, ax, 2] = vv - kv * pv
+        cov[t, 3 * ax] = (1.0 - kp) * pp
+        cov[t, 3 * ax + 1] = (1.0 - kp) * pv
+        cov[t, 3 * ax + 2] = vv - kv * pv
 
 
 @njit(cache=True, error_model="numpy")
@@ -88,7 +96,7 @@ def _gated_pairs(state: np.ndarray, cov: np.ndarray, status: np.ndarray, det: np
         for d in range(n):
             ex, ey = det[d, 0] - state[t, 0], det[d, 1] - state[t, 1]
             dist = math.sqrt(ex * ex + ey * ey)
-            maha = ex * ex / (cov[t, 0, 0] + r2) + ey * ey / (cov[t, 1, 0] + r2)
+            maha = ex * ex / (cov[t, 0] + r2) + ey * ey / (cov[t, 3] + r2)
             if dist <= gate and maha <= chi2:
                 cost[m] = dist + (1000.0 if status[t] == 1 else 0.0)
                 ti[m], di[m] = t, d
@@ -106,7 +114,7 @@ def _birth(arrays_state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: n
             arrays_state[t, 0], arrays_state[t, 1] = det_row[0], det_row[1]
             arrays_state[t, 2], arrays_state[t, 3] = 0.0, 0.0
             for ax in range(2):
-                cov[t, ax, 0], cov[t, ax, 1], cov[t, ax, 2] = r2, 0.0, v2
+                cov[t, 3 * ax], cov[t, 3 * ax + 1], cov[t, 3 * ax + 2] = r2, 0.0, v2
             status[t], ids[t] = TENTATIVE, next_id
             counts[t, 0], counts[t, 1], counts[t, 2] = 1, 1, 0
             shape[t, 0], shape[t, 1], shape[t, 2], shape[t, 3] = det_row[2], det_row[0], det_row[1], 0.0
@@ -129,14 +137,16 @@ def _bookkeep(status: np.ndarray, counts: np.ndarray, t: int, confirm_hits: int,
 
 
 @njit(cache=True, error_model="numpy")
-def update_kernel(state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: np.ndarray,
-                  counts: np.ndarray, shape: np.ndarray, det: np.ndarray, n: int, dt: float,
+def update_kernel(floats: np.ndarray, ints: np.ndarray, det: np.ndarray, n: int, dt: float,
                   params: np.ndarray, next_id: int) -> int:
-    """Advance every track by one step of ``dt`` seconds with detections ``det[:n]`` (``[x, y, r]``).
+    """Advance every track (:class:`TrackArrays` ``floats`` and ``ints``) by one step of ``dt`` seconds
+    with detections ``det[:n]`` (``[x, y, r]``).
 
     ``params``: ``[accel_std (m/s²), measurement_std (m), initial_speed_std (m/s), gate (m),
     gate_chi2, confirm_hits, confirm_window, max_misses]``. Returns the next free identity.
     """
+    state, cov, shape = split_floats(floats)
+    status, ids, counts = split_ints(ints)
     q, r2, v2 = params[0] ** 2, params[1] ** 2, params[2] ** 2
     for t in range(status.shape[0]):
         if status[t] != FREE:

@@ -133,13 +133,16 @@ class Track:
 
 
 @njit(cache=True, error_model="numpy")
-def _step_kernel(scan: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, x: float, y: float, dt: float,
-                 detect_params: np.ndarray, grid: np.ndarray, detections: np.ndarray, filter_params: np.ndarray,
-                 state: np.ndarray, cov: np.ndarray, status: np.ndarray, ids: np.ndarray, counts: np.ndarray,
-                 shape: np.ndarray, next_id: int) -> tuple[int, int]:
-    """Detection then filtering in one call (one dispatch per control step): (detections, next id)."""
-    n = detect_kernel(scan, cos_a, sin_a, x, y, detect_params, grid, detections)
-    return n, update_kernel(state, cov, status, ids, counts, shape, detections, n, dt, filter_params, next_id)
+def _step_kernel(scan: np.ndarray, trig: np.ndarray, x: float, y: float, dt: float, params: np.ndarray,
+                 grid: np.ndarray, detections: np.ndarray, floats: np.ndarray, ints: np.ndarray,
+                 next_id: int) -> tuple[int, int]:
+    """Detection then filtering in one call (one dispatch per control step): (detections, next id).
+
+    ``trig`` is (2, B) beam cosines and sines; ``params`` the detection parameters (17) then the
+    filter parameters (8).
+    """
+    n = detect_kernel(scan, trig[0], trig[1], x, y, params[:17], grid, detections)
+    return n, update_kernel(floats, ints, detections, n, dt, params[17:], next_id)
 
 
 class Tracker:
@@ -156,7 +159,7 @@ class Tracker:
             raise ValueError(f"tracker: needs >= 8 beams and max_range > 0 (got {beams}, {max_range})")
         self.config, self.beams = config, beams
         angles = beam_angles(beams)
-        self._cos, self._sin = np.cos(angles), np.sin(angles)
+        self._trig = np.stack([np.cos(angles), np.sin(angles)])
         c = config
         limit = max_range - 3.0 * c.noise_std
         self._detect_params = np.array([limit, c.range_jump, c.line_tolerance, c.line_min_length, *c.radius,
@@ -165,12 +168,14 @@ class Tracker:
                                         0.0, 0.0, c.static_hits, c.range_jump_per_metre], dtype=np.float64)
         self._filter_params = np.array([c.accel_std, c.measurement_std, c.initial_speed_std, c.gate, c.gate_chi2,
                                         c.confirm_hits, c.confirm_window, c.max_misses], dtype=np.float64)
+        self._params = np.concatenate([self._detect_params, self._filter_params])
+        self._detect_params = self._params[:17]  # views: the grid origin is written through them
         self._detections = np.zeros((c.capacity, 3))
         self.reset()
 
     def reset(self) -> None:
         """Forget every track (a new episode); identities restart at 0."""
-        self.arrays = TrackArrays.empty(self.config.capacity)
+        self.arrays = TrackArrays(self.config.capacity)
         cells = int(np.ceil(self.config.map_size / self.config.map_cell))
         self._grid = np.zeros((cells, cells), dtype=np.int32)
         self._grid_placed = False
@@ -192,10 +197,9 @@ class Tracker:
         if not self._grid_placed:  # the static map is centred on the episode's first position
             self._detect_params[13:15] = x - 0.5 * self.config.map_size, y - 0.5 * self.config.map_size
             self._grid_placed = True
-        a = self.arrays
         self.num_detections, self._next_id = _step_kernel(
-            scan, self._cos, self._sin, x, y, float(dt), self._detect_params, self._grid, self._detections,
-            self._filter_params, a.state, a.cov, a.status, a.ids, a.counts, a.shape, self._next_id)
+            scan, self._trig, x, y, float(dt), self._params, self._grid, self._detections, self.arrays.floats,
+            self.arrays.ints, self._next_id)
 
     @property
     def detections(self) -> np.ndarray:
@@ -220,7 +224,7 @@ class Tracker:
         for t in self._reported():
             cov = np.zeros((4, 4))
             for ax in range(2):
-                pp, pv, vv = a.cov[t, ax]
+                pp, pv, vv = a.cov[t, 3 * ax:3 * ax + 3]
                 cov[ax, ax], cov[ax, 2 + ax], cov[2 + ax, ax], cov[2 + ax, 2 + ax] = pp, pv, pv, vv
             out.append(Track(int(a.ids[t]), a.state[t, :2].copy(), a.state[t, 2:].copy(), float(a.shape[t, 0]),
                              int(a.counts[t, 0]), cov))
