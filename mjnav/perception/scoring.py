@@ -133,5 +133,6 @@ class TrackingScore:
             return a / b if b else float("nan")
         return {"precision": ratio(self.matched, self.tracks), "recall": ratio(self.matched, self.truths),
                 "recall_near_los": ratio(self.near_seen_matched, self.near_seen),
-                "pos_rmse": ratio(self.pos_sq, self.matched) ** 0.5, "vel_rmse": ratio(self.vel_sq, self.vel_count) ** 0.5,
+                "pos_rmse": ratio(self.pos_sq, self.matched) ** 0.5,
+                "vel_rmse": ratio(self.vel_sq, self.vel_count) ** 0.5,
                 "id_switches": float(self.switches)}

@@ -3,17 +3,18 @@
 Numba kernels on one LiDAR scan in the world frame (the robot does not rotate: beam 0 points
 along world +x, spec §2). Distances are metres, angles radians. The pipeline is
 
-1. points: each beam's hit in the world; beams at (or within ``invalid_margin`` of) the maximum
-   range hit nothing;
+1. points: each beam's hit in the world; beams at or above ``limit`` (three noise σ below the
+   maximum range) hit nothing; every hit also counts in its cell of the static map (step 5);
 2. clusters: runs of consecutive hit beams whose ranges differ by at most ``range_jump`` plus
    ``range_jump_per_metre`` times the nearer range (an adaptive breakpoint: a wall seen at a
-   grazing angle steps further between beams far away)
-   (the scan is unrolled to start at a discontinuity, so a cluster may cross beam 0);
+   grazing angle steps further between beams far away); the scan is unrolled to start at a
+   discontinuity, so a cluster may cross beam 0;
 3. structure: iterative end-point fit (split at the farthest point from the chord while it is
    above ``line_tolerance``); line pieces at least ``line_min_length`` long are walls or
-   obstacle edges and are removed, leaving the bulges of pedestrians standing by them; a run
-   between (or beside) line pieces that rises less than ``bump_depth`` above their line towards
-   the robot is noise on the structure and is removed too;
+   obstacle edges and are removed, leaving the bulges of pedestrians standing by them; a final
+   piece beside line pieces that rises less than ``bump_depth`` above their line (a total-least-
+   squares fit to the structure points around it) towards the robot is noise on the structure
+   or a stub of it, and is removed too;
 4. splitting: a remaining run wider than one pedestrian (``2 r_max + split_margin``), or with a
    concavity deeper than ``notch_depth``, is split at its deepest concavity (3-beam mean range
    above that of the beams two either side: the notch between two touching pedestrians),
@@ -290,8 +291,9 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
         ox, oy: Robot (scan origin) position in the world, metres.
         params: ``[limit, range_jump, line_tolerance, line_min_length, r_min, r_max, split_margin,
             max_width, min_points, notch_depth, bump_depth, detect_range, 1 / cell, grid x0, grid y0,
-            static_hits, range_jump_per_metre]`` (metres except the counts ``min_points`` and ``static_hits``); ``limit`` is the range at and above which a beam hit nothing; pieces
-            whose nearest point lies beyond ``detect_range`` are segmented but not reported.
+            static_hits, range_jump_per_metre]`` (metres except the counts ``min_points`` and
+            ``static_hits``); ``limit`` is the range at and above which a beam hit nothing;
+            pieces whose nearest point lies beyond ``detect_range`` are segmented but not reported.
         grid: (G, G) int32 hit counts per world cell, updated in place (the robot's own static map).
         out: (D, 3) buffer for ``[x, y, r]`` rows, world metres.
 

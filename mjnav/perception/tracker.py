@@ -6,7 +6,8 @@ detection (:mod:`mjnav.perception.segment`), then association and filtering
 (:mod:`mjnav.perception.filter`). Tracks whose centre never left a ``static_distance`` disc over
 ``static_age`` steps are static structure (a wall piece or an obstacle corner) and are kept to
 absorb their detections but not reported; scan pieces that mostly hit cells of the robot's own
-hit-count grid that were hit scan after scan are structure before they become detections. Deterministic: the same scans give the same tracks.
+hit-count grid that were hit scan after scan are structure before they become detections.
+Deterministic: the same scans give the same tracks.
 """
 
 from __future__ import annotations
