@@ -89,6 +89,7 @@ VERBS: dict[str, Verb] = {
                             "mjnav.bench.throughput"),
         "crowd": _verb("bench crowd", "Pedestrian models' cost per control step and ORCA's contacts.",
                        "mjnav.bench.crowd"),
+        "tracker": _verb("bench tracker", "LiDAR pedestrian tracker vs ground truth per stage.", "mjnav.bench.tracker"),
         "sim": _verb("bench sim", "NavSim build, reset and control-step times per LiDAR backend.", "mjnav.bench.sim"),
         "action_layer": _verb("bench action_layer", "Region, action mapping and MPC latencies vs the authors'.",
                               "mjnav.bench.action_layer"),

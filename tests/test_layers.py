@@ -25,7 +25,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mjnav"
 LAYERS: list[list[str]] = [
     ["mjnav.registry", "mjnav.timing", "mjnav.resources"],
     ["mjnav.schema", "mjnav.args", "mjnav.shipped", "mjnav.geometry"],
-    ["mjnav.control"],
+    ["mjnav.control", "mjnav.perception"],
     ["mjnav.world", "mjnav.tasks", "mjnav.tasks.design", "mjnav.tasks.privileged"],
     ["mjnav.config"],
     ["mjnav.stages", "mjnav.planners", "mjnav.entities", "mjnav.sensors", "mjnav.fused"],
