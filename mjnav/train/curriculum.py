@@ -23,6 +23,7 @@ from rsl_rl.runners import OnPolicyRunner
 
 from mjnav import stages
 from mjnav.envs.vec_env import NavVecEnv
+from mjnav.train import distributed
 from mjnav.train.config import TrainConfig
 from mjnav.train.evaluate import EvalResult, evaluate
 from mjnav.train.runner import learn, make_vec_env, save_checkpoint
@@ -63,7 +64,9 @@ class CurriculumState:
     evaluations: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
     def save(self, run_dir: str | Path) -> None:
-        """Write ``curriculum.yaml`` into ``run_dir``."""
+        """Write ``curriculum.yaml`` into ``run_dir`` (rank 0 only under torchrun)."""
+        if not distributed.current().main:
+            return
         Path(run_dir, STATE_FILE).write_text(yaml.safe_dump(dataclasses.asdict(self), sort_keys=False))
 
     @classmethod
