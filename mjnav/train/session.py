@@ -431,15 +431,22 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
         except TrainingInterrupted:
             path = save_checkpoint(runner, plan.run_dir)
             if distributed.current().main:
-                print(f"saved {path}\ncontinue with: {resume_command(plan.run_dir)}", flush=True)
+                print(f"saved {path}\ncontinue with: {resume_command(plan.run_dir, distributed.current())}",
+                      flush=True)
             return False
     return True
 
 
-def resume_command(run_dir: Path) -> str:
+def resume_command(run_dir: Path, ranks: distributed.Ranks | None = None) -> str:
     """The shell command that continues ``run_dir``: this interpreter's absolute path, so it works
-    without activating the virtual environment."""
-    return shlex.join([sys.executable, "-m", "mjnav", "train", f"resume={run_dir}"])
+    without activating the virtual environment; with several ``ranks``, under torchrun with as many
+    processes per node (other nodes add their own rendezvous arguments)."""
+    launch = [sys.executable, "-m", "mjnav", "train", f"resume={run_dir}"]
+    if ranks is not None and ranks.distributed:
+        nodes = ranks.world_size // ranks.local_world_size
+        launch[1:2] = ["-m", "torch.distributed.run", f"--nproc_per_node={ranks.local_world_size}",
+                       *([f"--nnodes={nodes}"] if nodes > 1 else ["--standalone"]), "-m"]
+    return shlex.join(launch)
 
 
 def _start_line(plan: RunPlan) -> str:

@@ -2,7 +2,8 @@
 
 The torchrun tests launch this file as the training script: run as ``__main__`` it trains through
 ``mjnav.train.session.run`` with every PPO update followed by a line in ``$MJNAV_TEST_DIGESTS/rank<R>.txt``
-(iteration, a digest of the actor and critic state, a digest of the rollout's observations).
+(iteration, a digest of the actor and critic state, a digest of the rollout's observations);
+with ``$MJNAV_TEST_STOP_AT=K`` the last rank asks to stop (as SIGTERM would) just before update K.
 """
 
 from __future__ import annotations
@@ -39,9 +40,12 @@ def _digest(tensors: list[torch.Tensor]) -> str:
 def _record_updates() -> None:
     """Make ``session.run`` append one digest line per PPO update to ``$MJNAV_TEST_DIGESTS/rank<R>.txt``."""
     from mjnav.train import session
+    from mjnav.train.runner import request_stop
 
     build = session.build_runner
     out = Path(os.environ["MJNAV_TEST_DIGESTS"]) / f"rank{os.environ.get('RANK', '0')}.txt"
+    last_rank = os.environ.get("RANK") == str(int(os.environ.get("WORLD_SIZE", "1")) - 1)
+    stop_at = int(os.environ.get("MJNAV_TEST_STOP_AT", "-1"))
 
     def build_and_record(*args: Any, **kwargs: Any) -> Any:
         runner = build(*args, **kwargs)
@@ -49,6 +53,8 @@ def _record_updates() -> None:
 
         def update_and_record(*a: Any, **k: Any) -> Any:
             iteration = runner.current_learning_iteration + len(done)  # the next iteration before the first update
+            if last_rank and iteration == stop_at:
+                request_stop()
             observed = _digest([runner.alg.storage.observations["policy"]])
             result = update(*a, **k)
             done.append(iteration)
@@ -63,9 +69,11 @@ def _record_updates() -> None:
     session.build_runner = build_and_record
 
 
-def _torchrun(args: list[str], digests: Path, ranks: int = 2) -> subprocess.CompletedProcess[str]:
-    """Train this file's ``__main__`` under ``torchrun --standalone`` with ``ranks`` CPU processes."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "MJNAV_TEST_DIGESTS": str(digests), "OMP_NUM_THREADS": "1"}
+def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1) -> subprocess.CompletedProcess[str]:
+    """Train this file's ``__main__`` under ``torchrun --standalone`` with ``ranks`` CPU processes
+    (the last rank asks to stop before update ``stop_at``)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MJNAV_TEST_DIGESTS": str(digests), "OMP_NUM_THREADS": "1",
+           "MJNAV_TEST_STOP_AT": str(stop_at)}
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={ranks}",
                __file__, *args]
     done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, cwd=ROOT)
@@ -114,13 +122,14 @@ def test_rank0_alone_writes_a_single_process_shaped_run_folder(ddp_run, tmp_path
     assert {"config.yaml", "model_1.pt", "policy.pt", "checkpoint_weights.pt", "events"} <= _shape(run_dir)
 
 
-def test_resume_loads_the_checkpoint_on_every_rank(ddp_run, tmp_path):
-    """A torchrun resume continues at iteration 2 with the ranks still in lockstep."""
+def test_resume_loads_the_checkpoint_on_every_rank_and_a_stop_on_one_rank_stops_all(ddp_run, tmp_path):
+    """A torchrun resume continues at iteration 2 with the ranks in lockstep; the last rank's stop
+    request before update 3 ends both ranks after iteration 3, and rank 0 saves ``model_3.pt``."""
     run_dir, _ = ddp_run
-    _torchrun([f"resume={run_dir}", "train.iterations=3"], tmp_path)
+    done = _torchrun([f"resume={run_dir}", "train.iterations=20"], tmp_path, stop_at=3)
     rank0, rank1 = _lines(tmp_path, 0), _lines(tmp_path, 1)
-    assert [r[0] for r in rank0] == ["2"] and [r[:2] for r in rank0] == [r[:2] for r in rank1]
-    assert (run_dir / "model_2.pt").is_file()
+    assert [r[0] for r in rank0] == ["2", "3"] and [r[:2] for r in rank0] == [r[:2] for r in rank1]
+    assert (run_dir / "model_3.pt").is_file() and "torch.distributed.run" in done.stdout.split("continue with:")[1]
 
 
 def test_rank_seeds_devices_and_backends():
