@@ -122,9 +122,11 @@ class TrainConfig:
     """PPO training run.
 
     Attributes:
-        num_envs: Parallel environments N.
-        workers: Workers stepping environments (-1: one per CPU core, at most N; 0: in-process). The
-            trainer process is worker 0, so W workers start W - 1 processes.
+        num_envs: Parallel environments N, per rank under torchrun (an iteration then collects
+            ranks × N × steps_per_env transitions; :mod:`mjnav.train.distributed`).
+        workers: Workers stepping environments (-1: one per CPU core, at most N, the node's cores
+            shared by its ranks under torchrun; 0: in-process). The trainer process is worker 0,
+            so W workers start W - 1 processes.
         start_method: Worker start method (``forkserver`` or ``spawn``; never plain fork with torch).
         iterations: Total PPO iterations of the run (a resumed run continues up to this).
         steps_per_env: Rollout length per environment and iteration.
@@ -148,15 +150,17 @@ class TrainConfig:
             learns: the actor's weights and log-std stay as loaded. For a run started (``init=``)
             from an actor whose critic does not fit it (an imitation warm start, another
             observation), so that the first advantages do not undo the actor. 0: off.
-        device: Torch device of the networks and returned tensors (``cpu``, ``cuda``, ``cuda:1``).
+        device: Torch device of the networks and returned tensors (``cpu``, ``cuda``, ``cuda:1``);
+            under torchrun any ``cuda`` is the rank's ``cuda:LOCAL_RANK``.
         torch_threads: Intra-op threads of the trainer process while it collects rollouts (0: torch
             default). 1 by default: on a 2-core box torch's two OpenMP threads spin against the env
             workers and made collection 3x slower (measured: 1.4 s vs 4-5 s per 1,024 transitions).
         update_threads: Intra-op threads during the PPO update, when the env workers are idle (0:
-            one per usable CPU core). On the 2-core box two threads took 0.80 s per update of
+            one per usable CPU core, shared by a node's ranks). On the 2-core box two threads took 0.80 s per update of
             20 minibatches of 1,024 against 1.29 s with one.
         save_interval: Iterations between checkpoints.
-        seed: Seed of torch and of the environments (env i starts from seed + i).
+        seed: Seed of torch and of the environments (env i starts from seed + i); under torchrun
+            rank r uses seed + r × num_envs for both.
         verbose: Also print rsl-rl's per-iteration block (otherwise one progress line).
         policy: Network settings.
         curriculum: Curriculum settings (used with ``curriculum=true``).

@@ -8,6 +8,8 @@ held-out set of ``scripts/evaluate.py``, which is kept for final results). The c
 stage when the success rate reaches ``threshold`` or when the stage's env-step budget is spent.
 One runner (networks, optimizer, iteration count, TensorBoard run) lives through all stages;
 only its environment is swapped. The state is kept in ``curriculum.yaml`` for resuming.
+Under torchrun every rank evaluates with the same weights on the same evaluation seeds, so all
+ranks take the same decisions; rank 0 alone prints them and writes ``curriculum.yaml``.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from rsl_rl.runners import OnPolicyRunner
 
 from mjnav import stages
 from mjnav.envs.vec_env import NavVecEnv
+from mjnav.train import distributed
 from mjnav.train.config import TrainConfig
 from mjnav.train.evaluate import EvalResult, evaluate
 from mjnav.train.runner import learn, make_vec_env, save_checkpoint
@@ -63,7 +66,9 @@ class CurriculumState:
     evaluations: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
     def save(self, run_dir: str | Path) -> None:
-        """Write ``curriculum.yaml`` into ``run_dir``."""
+        """Write ``curriculum.yaml`` into ``run_dir`` (rank 0 only under torchrun)."""
+        if not distributed.current().main:
+            return
         Path(run_dir, STATE_FILE).write_text(yaml.safe_dump(dataclasses.asdict(self), sort_keys=False))
 
     @classmethod
@@ -179,8 +184,6 @@ def _record(
     verdict = {"success": "promoted (success)", "budget": "promoted (step budget spent)", None: "stays"}[
         decision
     ]
-    print(
-        f"[curriculum] {stage_name(state.stage)} eval at iteration {iteration}: {result.summary()}"
-        f" -> {verdict}",
-        flush=True,
-    )
+    if distributed.current().main:  # every rank evaluates alike (same weights and evaluation seeds)
+        print(f"[curriculum] {stage_name(state.stage)} eval at iteration {iteration}: {result.summary()}"
+              f" -> {verdict}", flush=True)

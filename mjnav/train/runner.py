@@ -42,7 +42,7 @@ from torch.utils.tensorboard import SummaryWriter
 
 from mjnav.envs.gym_env import make_gym_env
 from mjnav.envs.vec_env import NavVecEnv
-from mjnav.envs.workers import usable_cores
+from mjnav.train import distributed
 from mjnav.train.config import TrainConfig
 
 if TYPE_CHECKING:
@@ -98,12 +98,21 @@ class TaskEnvFactory:
 def make_vec_env(
     task: TaskConfig, train: TrainConfig, seed: int | None = None, num_envs: int | None = None
 ) -> NavVecEnv:
-    """The rsl-rl adapter over ``num_envs`` (default ``train.num_envs``) environments of ``task``."""
+    """The rsl-rl adapter over ``num_envs`` (default ``train.num_envs``) environments of ``task``.
+
+    Without ``seed`` the environments start from this rank's seed (:func:`distributed.rank_seed`:
+    ``train.seed`` in one process); ``train.workers=-1`` gives one worker per core of the rank.
+    """
+    ranks = distributed.current()
+    count = num_envs or train.num_envs
+    workers = min(train.workers, count) if train.workers >= 0 else None
+    if workers is None and ranks.distributed:
+        workers = min(count, distributed.rank_cores(ranks))
     return NavVecEnv(
         TaskEnvFactory(task),
-        num_envs=num_envs or train.num_envs,
-        seed=train.seed if seed is None else seed,
-        workers=None if train.workers < 0 else min(train.workers, num_envs or train.num_envs),
+        num_envs=count,
+        seed=distributed.rank_seed(train.seed, train.num_envs, ranks) if seed is None else seed,
+        workers=workers,
         device=train.device,
         max_episode_length=task.timing.episode_steps,
         start_method=train.start_method,
@@ -167,20 +176,28 @@ def rsl_config(train: TrainConfig, label: str = "", privileged_critic: bool = Fa
 def build_runner(
     env: NavVecEnv, train: TrainConfig, log_dir: str | Path | None, label: str = ""
 ) -> OnPolicyRunner:
-    """Seed torch and construct the runner (networks, PPO, storage, logger) on ``train.device``."""
-    torch.manual_seed(train.seed)
+    """Seed torch and construct the runner (networks, PPO, storage, logger) on ``train.device``.
+
+    Under torchrun (an open process group, :mod:`mjnav.train.distributed`) it is this rank's runner:
+    torch seeded with the rank's seed, gradients averaged over the ranks, ``log_dir`` used by rank 0
+    only, and a stop requested on any rank honoured by all after the same iteration.
+    """
+    ranks = distributed.current()
+    torch.manual_seed(distributed.rank_seed(train.seed, train.num_envs, ranks))
     if train.torch_threads > 0:
         torch.set_num_threads(train.torch_threads)
     with contextlib.redirect_stdout(_ModelPrintFilter(sys.stdout, train.verbose)):
-        runner = OnPolicyRunner(
+        runner = distributed.DistributedRunner(
             env,
             rsl_config(train, label, privileged_critic=getattr(env, "critic_dim", 0) > 0),
             None if log_dir is None else str(log_dir),
             train.device,
         )
     runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
-    _thread_the_update(runner, train.update_threads or usable_cores())
+    _thread_the_update(runner, train.update_threads or distributed.rank_cores(ranks))
     _warm_up_critic(runner, train.critic_warmup)
+    if ranks.distributed:
+        _agree_on_stops(runner, ranks)
     _atomic_saves(runner)
     runner.mjnav_verbose = train.verbose  # type: ignore[attr-defined]
     return runner
@@ -254,6 +271,32 @@ def _warm_up_critic(runner: OnPolicyRunner, iterations: int) -> None:
     runner.alg.update = update_with_warmup
 
 
+def _agree_on_stops(runner: OnPolicyRunner, ranks: distributed.Ranks) -> None:
+    """Make every rank stop after the same iteration when any rank was asked to stop.
+
+    After each update the ranks share their stop flags (one all-reduce); rank 0's
+    :class:`ProgressWriter` then raises :class:`TrainingInterrupted` after logging, and the other
+    ranks, which log nothing, raise it from the logger's ``log``. Wraps both on the instance.
+    """
+    update, log = runner.alg.update, runner.logger.log
+
+    @functools.wraps(update)
+    def update_then_agree(*args: Any, **kwargs: Any) -> Any:
+        result = update(*args, **kwargs)
+        _STOP["requested"] = distributed.any_rank(_STOP["requested"], runner.device)
+        return result
+
+    @functools.wraps(log)
+    def log_then_stop(*args: Any, it: int, **kwargs: Any) -> None:
+        log(*args, it=it, **kwargs)
+        if _STOP["requested"]:
+            raise TrainingInterrupted(it)
+
+    runner.alg.update = update_then_agree
+    if not ranks.main:
+        runner.logger.log = log_then_stop
+
+
 def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool = False) -> None:
     """Run ``iterations`` PPO iterations, numbered on from ``runner.current_learning_iteration``.
 
@@ -308,9 +351,12 @@ def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool
 
 
 def save_checkpoint(runner: OnPolicyRunner, run_dir: str | Path) -> Path:
-    """Save ``model_<last completed iteration>.pt`` into ``run_dir`` (between :func:`learn` calls)."""
+    """Save ``model_<last completed iteration>.pt`` into ``run_dir`` (between :func:`learn` calls);
+    under torchrun rank 0 saves and the other ranks only return the path."""
     last = runner.current_learning_iteration - 1
     path = Path(run_dir) / f"model_{last}.pt"
+    if not distributed.current().main:
+        return path
     runner.current_learning_iteration = last  # checkpoints store the last completed iteration
     try:
         runner.save(str(path))
@@ -422,7 +468,7 @@ class _BlockFilter:
         self.stream, self.verbose, self._skip_newline = stream, verbose, False
 
     def write(self, text: str) -> int:
-        if not self.verbose and text.startswith("#" * 20):
+        if not self.verbose and text.startswith(("#" * 20, "Synchronizing parameters")):
             self._skip_newline = True
             return len(text)
         if self._skip_newline and text == "\n":

@@ -8,6 +8,10 @@ configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml``
 runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed) and
 ``checkpoint_weights.pt`` (actor with its std and critic, no optimizer state: ~2.3 MB, what a
 shipped policy adds besides its actor; ``init=`` and ``start=auto`` take it).
+
+Under ``torchrun --nproc_per_node=N`` the session trains one policy data-parallel over N processes
+(:mod:`mjnav.train.distributed`): ``train.num_envs`` environments per rank, rank 0 writing the run
+folder (the same files), every rank loading the checkpoint on ``resume=``.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from mjnav.policy import training_overrides
 from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
 from mjnav.stages import stage_numbers
 from mjnav.train import curriculum as stages
+from mjnav.train import distributed
 from mjnav.train.config import TrainConfig, load_train
 from mjnav.train.curriculum import CurriculumState, run_curriculum, stage_name
 from mjnav.train.export import export_actor
@@ -360,27 +365,41 @@ def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Pat
     Args:
         argv: ``key=value`` arguments.
         make_env: ``make_env(task, train, seed=None, num_envs=None)`` building the adapter.
+
+    Under torchrun every rank runs this on one process group (:mod:`mjnav.train.distributed`):
+    rank 0 names the run folder and alone writes into it; each rank trains on its own device.
     """
     plan = plan_run(parse_args(argv))
-    check_device(plan.train.device)
-    _write_config(plan, argv)
+    check_device(distributed.rank_device(plan.train.device, distributed.ranks_from_env()))
+    with distributed.process_group(plan.train.device) as ranks:
+        plan.run_dir = distributed.share(plan.run_dir)
+        if ranks.main:
+            _write_config(plan, argv)
+        plan.train = dataclasses.replace(plan.train, device=distributed.rank_device(plan.train.device, ranks))
+        return _run_rank(plan, make_env, ranks.main)
+
+
+def _run_rank(plan: RunPlan, make_env: Callable[..., Any], main: bool) -> Path:
+    """Train ``plan`` in this process (one rank under torchrun; ``main``: rank 0, which writes)."""
     train = plan.train
     env = make_env(plan.task, train)
     runner = None
     try:
         runner = build_runner(
-            env, train, plan.run_dir, label=plan.task.name if plan.curriculum is None else "curriculum"
+            env, train, plan.run_dir if main else None,
+            label=plan.task.name if plan.curriculum is None else "curriculum",
         )
         critic_loaded = True
         if plan.checkpoint is not None:
             load_checkpoint(runner, plan.checkpoint)
         elif plan.init is not None:
             critic_loaded = load_checkpoint(runner, plan.init, weights_only=True)
-        _print_header(plan, env, runner.current_learning_iteration)
-        if not critic_loaded:
+        if main:
+            _print_header(plan, env, runner.current_learning_iteration)
+        if not critic_loaded and main:
             print(f"critic: not taken from {plan.init} (its inputs differ); a new critic starts, "
                   f"train.critic_warmup={train.critic_warmup} updates with the actor frozen", flush=True)
-        if not _train(runner, plan, make_env):
+        if not _train(runner, plan, make_env) or not main:
             return plan.run_dir
         for path in (*export_actor(runner.alg.get_policy(), plan.run_dir), save_weights(runner, plan.run_dir)):
             print(f"exported {path}")
@@ -404,15 +423,23 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
                 )
         except TrainingInterrupted:
             path = save_checkpoint(runner, plan.run_dir)
-            print(f"saved {path}\ncontinue with: {resume_command(plan.run_dir)}", flush=True)
+            if distributed.current().main:
+                print(f"saved {path}\ncontinue with: {resume_command(plan.run_dir, distributed.current())}",
+                      flush=True)
             return False
     return True
 
 
-def resume_command(run_dir: Path) -> str:
+def resume_command(run_dir: Path, ranks: distributed.Ranks | None = None) -> str:
     """The shell command that continues ``run_dir``: this interpreter's absolute path, so it works
-    without activating the virtual environment."""
-    return shlex.join([sys.executable, "-m", "mjnav", "train", f"resume={run_dir}"])
+    without activating the virtual environment; with several ``ranks``, under torchrun with as many
+    processes per node (other nodes add their own rendezvous arguments)."""
+    launch = [sys.executable, "-m", "mjnav", "train", f"resume={run_dir}"]
+    if ranks is not None and ranks.distributed:
+        nodes = ranks.world_size // ranks.local_world_size
+        launch[1:2] = ["-m", "torch.distributed.run", f"--nproc_per_node={ranks.local_world_size}",
+                       *([f"--nnodes={nodes}"] if nodes > 1 else ["--standalone"]), "-m"]
+    return shlex.join(launch)
 
 
 def _start_line(plan: RunPlan) -> str:
@@ -440,11 +467,13 @@ def _start_line(plan: RunPlan) -> str:
 
 
 def _print_header(plan: RunPlan, env: Any, start: int) -> None:
-    t = plan.train
+    t, ranks = plan.train, distributed.current()
     batch = t.num_envs * t.steps_per_env
+    per_rank = f"{ranks.world_size} ranks x " if ranks.distributed else ""
     print(_start_line(plan), flush=True)
     print(
-        f"run {plan.run_dir} | task {plan.task.name} | {t.num_envs} envs x {t.steps_per_env} steps = {batch} "
+        f"run {plan.run_dir} | task {plan.task.name} | {per_rank}{t.num_envs} envs x {t.steps_per_env} steps = "
+        f"{batch * ranks.world_size} "
         f"transitions/iteration | {t.epochs} epochs x {t.minibatches} minibatches of "
         f"{batch // t.minibatches} | "
         f"workers {env.workers} | device {t.device} | iterations {start}->{t.iterations}"

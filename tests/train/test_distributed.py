@@ -1,0 +1,159 @@
+"""Data-parallel PPO under torchrun on CPU (gloo over loopback): ranks stay in lockstep, rank 0 writes.
+
+The torchrun tests launch this file as the training script: run as ``__main__`` it trains through
+``mjnav.train.session.run`` with every PPO update followed by a line in ``$MJNAV_TEST_DIGESTS/rank<R>.txt``
+(iteration, a digest of the actor and critic state, a digest of the rollout's observations);
+with ``$MJNAV_TEST_STOP_AT=K`` the last rank asks to stop (as SIGTERM would) just before update K.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+import torch
+
+from mjnav.schema import ConfigError
+from mjnav.train import distributed
+
+ROOT = Path(__file__).resolve().parents[2]
+TINY = [
+    "task=stage1", "start=scratch", "train.num_envs=2", "train.workers=0", "train.steps_per_env=4",
+    "train.epochs=1", "train.minibatches=1", "train.policy.actor_hidden_dims=[16, 16, 16]",
+    "train.policy.critic_hidden_dims=[16, 16, 16]",
+]
+
+
+def _digest(tensors: list[torch.Tensor]) -> str:
+    """SHA-256 of the tensors' bytes, in order."""
+    h = hashlib.sha256()
+    for t in tensors:
+        h.update(t.detach().cpu().contiguous().numpy().tobytes())
+    return h.hexdigest()[:16]
+
+
+def _record_updates() -> None:
+    """Make ``session.run`` append one digest line per PPO update to ``$MJNAV_TEST_DIGESTS/rank<R>.txt``."""
+    from mjnav.train import session
+    from mjnav.train.runner import request_stop
+
+    build = session.build_runner
+    out = Path(os.environ["MJNAV_TEST_DIGESTS"]) / f"rank{os.environ.get('RANK', '0')}.txt"
+    last_rank = os.environ.get("RANK") == str(int(os.environ.get("WORLD_SIZE", "1")) - 1)
+    stop_at = int(os.environ.get("MJNAV_TEST_STOP_AT", "-1"))
+
+    def build_and_record(*args: Any, **kwargs: Any) -> Any:
+        runner = build(*args, **kwargs)
+        update, done = runner.alg.update, []
+
+        def update_and_record(*a: Any, **k: Any) -> Any:
+            iteration = runner.current_learning_iteration + len(done)  # the next iteration before the first update
+            if last_rank and iteration == stop_at:
+                request_stop()
+            observed = _digest([runner.alg.storage.observations["policy"]])
+            result = update(*a, **k)
+            done.append(iteration)
+            state = [v for m in (runner.alg.actor, runner.alg.critic) for _, v in sorted(m.state_dict().items())]
+            with out.open("a") as f:
+                f.write(f"{iteration} {_digest(state)} {observed}\n")
+            return result
+
+        runner.alg.update = update_and_record
+        return runner
+
+    session.build_runner = build_and_record
+
+
+def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1) -> subprocess.CompletedProcess[str]:
+    """Train this file's ``__main__`` under ``torchrun --standalone`` with ``ranks`` CPU processes
+    (the last rank asks to stop before update ``stop_at``)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MJNAV_TEST_DIGESTS": str(digests), "OMP_NUM_THREADS": "1",
+           "MJNAV_TEST_STOP_AT": str(stop_at)}
+    command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={ranks}",
+               __file__, *args]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    return done
+
+
+def _lines(digests: Path, rank: int) -> list[list[str]]:
+    return [line.split() for line in (digests / f"rank{rank}.txt").read_text().splitlines()]
+
+
+def _shape(run_dir: Path) -> set[str]:
+    """The run folder's files, TensorBoard event files under one name."""
+    return {"events" if p.name.startswith("events.out.tfevents") else str(p.relative_to(run_dir))
+            for p in run_dir.rglob("*") if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def ddp_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """Two ranks train stage 1 for 2 iterations; (run folder, digest folder)."""
+    root = tmp_path_factory.mktemp("ddp")
+    out, digests = root / "runs", root / "digests"
+    digests.mkdir()
+    _torchrun([*TINY, "train.iterations=2", f"out={out}"], digests)
+    (run_dir,) = out.iterdir()
+    return run_dir, digests
+
+
+def test_ranks_hold_identical_parameters_after_every_update(ddp_run):
+    """Both ranks log every update with the same parameter digest, from different rollouts."""
+    _, digests = ddp_run
+    rank0, rank1 = _lines(digests, 0), _lines(digests, 1)
+    assert [r[0] for r in rank0] == ["0", "1"]
+    assert [r[:2] for r in rank0] == [r[:2] for r in rank1]
+    assert rank0[0][1] != rank0[1][1]  # the update moved the parameters
+    assert all(a[2] != b[2] for a, b in zip(rank0, rank1))  # each rank collected its own data
+
+
+def test_rank0_alone_writes_a_single_process_shaped_run_folder(ddp_run, tmp_path):
+    """One run folder, with the files of a one-process run of the same arguments."""
+    from mjnav.train import session
+
+    run_dir, _ = ddp_run
+    single = session.run([*TINY, "train.iterations=2", f"out={tmp_path}"])
+    assert _shape(run_dir) == _shape(single)
+    assert {"config.yaml", "model_1.pt", "policy.pt", "checkpoint_weights.pt", "events"} <= _shape(run_dir)
+
+
+def test_resume_loads_the_checkpoint_on_every_rank_and_a_stop_on_one_rank_stops_all(ddp_run, tmp_path):
+    """A torchrun resume continues at iteration 2 with the ranks in lockstep; the last rank's stop
+    request before update 3 ends both ranks after iteration 3, and rank 0 saves ``model_3.pt``."""
+    run_dir, _ = ddp_run
+    done = _torchrun([f"resume={run_dir}", "train.iterations=20"], tmp_path, stop_at=3)
+    rank0, rank1 = _lines(tmp_path, 0), _lines(tmp_path, 1)
+    assert [r[0] for r in rank0] == ["2", "3"] and [r[:2] for r in rank0] == [r[:2] for r in rank1]
+    assert (run_dir / "model_3.pt").is_file() and "torch.distributed.run" in done.stdout.split("continue with:")[1]
+
+
+def test_rank_seeds_devices_and_backends():
+    """Rank r seeds seed + r·num_envs; cuda becomes cuda:LOCAL_RANK; gloo on CPU, nccl on CUDA."""
+    ranks = distributed.ranks_from_env({"WORLD_SIZE": "4", "RANK": "3", "LOCAL_RANK": "1", "LOCAL_WORLD_SIZE": "2"})
+    assert ranks == distributed.Ranks(rank=3, local_rank=1, world_size=4, local_world_size=2)
+    assert distributed.rank_seed(7, 16, ranks) == 7 + 3 * 16
+    assert distributed.rank_seed(7, 16, distributed.Ranks()) == 7
+    assert distributed.rank_device("cuda", ranks) == "cuda:1" and distributed.rank_device("cpu", ranks) == "cpu"
+    assert distributed.rank_device("cuda:0", distributed.Ranks()) == "cuda:0"
+    assert (distributed.backend("cuda:1"), distributed.backend("cpu")) == ("nccl", "gloo")
+    with pytest.raises(ConfigError, match="mps"):
+        distributed.rank_device("mps", ranks)
+
+
+def test_one_process_is_not_distributed():
+    """Without torchrun: one rank, rank 0 writes, values shared as they are."""
+    assert distributed.ranks_from_env({}) == distributed.Ranks()
+    assert distributed.current().main and not distributed.current().distributed
+    assert distributed.share("x") == "x" and distributed.any_rank(True, "cpu")
+
+
+if __name__ == "__main__":
+    from mjnav.cli import main
+
+    _record_updates()
+    sys.exit(main(["train", *sys.argv[1:]]))
