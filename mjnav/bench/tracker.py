@@ -91,6 +91,8 @@ def measure_stage(task_name: str, episodes: int, seed: int, max_steps: int,
     Returns:
         :meth:`TrackingScore.summary` plus ``us_per_step`` (median) and ``steps``.
     """
+    # deferred: the environment stack ~0.5 s (MuJoCo, dm_control) and the planners ~0.2 s, not needed
+    # by `mjnav bench tracker --help`
     from mjnav.envs.gym_env import NavGymEnv
     from mjnav.eval.policies import load_policy
 
