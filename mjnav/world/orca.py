@@ -52,8 +52,8 @@ import numba
 import numpy as np
 
 from mjnav.schema import ROBOT_RESPONSIBILITY, OrcaConfig
-from mjnav.world.crowd import PedestrianModel, pack_polygons, polygon_contact
-from mjnav.world.social_force import GOAL_CLEARANCE, GOAL_TIME_FACTOR, GOAL_TIME_SLACK, _obstacle_gap
+from mjnav.world.crowd import pack_polygons, polygon_contact
+from mjnav.world.social_force import GoalSeekingModel
 
 __all__ = [
     "OrcaConfig",
@@ -68,7 +68,6 @@ __all__ = [
 RVO_EPSILON = 1e-5
 #: Responsibility a pedestrian takes for avoiding another pedestrian (reciprocal: half each).
 RECIPROCAL = 0.5
-_GOAL_ATTEMPTS = 100
 _MIN_EDGE = 1e-9  # shorter polygon edges (repeated vertices) are dropped, metres
 
 
@@ -768,7 +767,7 @@ def _guard(
 # ---------------------------------------------------------------------------- model
 
 
-class OrcaModel(PedestrianModel):
+class OrcaModel(GoalSeekingModel):
     """Goal-seeking pedestrians that choose ORCA velocities against each other, walls and obstacles.
 
     Each pedestrian walks towards its own goal at its speed from :meth:`reset` (its preferred
@@ -818,6 +817,11 @@ class OrcaModel(PedestrianModel):
             orca = getattr(crowd, "orca", None) or OrcaConfig()
         reactive = getattr(crowd, "reactive", None)
         return cls(orca if reactive is None else dataclasses.replace(orca, reactive=bool(reactive)))
+
+    @property
+    def goal_tolerance(self) -> float:
+        """Distance to the goal at which a new goal is drawn, metres (:attr:`OrcaConfig.goal_tolerance`)."""
+        return self.config.goal_tolerance
 
     @property
     def goals(self) -> np.ndarray:
@@ -914,23 +918,3 @@ class OrcaModel(PedestrianModel):
             raise ValueError(f"robot positions must be finite, got {path.tolist()}")
         self._params[_P_ROBOT_RADIUS] = robot_radius + self.config.safety_margin
         return path
-
-    def _new_goal(self, i: int) -> None:
-        """Draws a goal for pedestrian ``i`` and sets its time budget, s."""
-        self._goal[i] = self._sample_goal(i)
-        distance = math.hypot(*(self._goal[i] - self._pos[i]))
-        speed = self._speed[i]
-        self._time_left[i] = GOAL_TIME_FACTOR * distance / speed + GOAL_TIME_SLACK if speed > 0 else np.inf
-
-    def _sample_goal(self, i: int) -> np.ndarray:
-        """A goal for pedestrian ``i`` in free space farther than the goal tolerance (as social force)."""
-        margin = self._radius[i] + GOAL_CLEARANCE
-        low = self._bounds[:2] + margin
-        high = np.maximum(self._bounds[2:] - margin, low)
-        goal = self._pos[i]
-        for _ in range(_GOAL_ATTEMPTS):
-            goal = self._rng.uniform(low, high)
-            far = math.hypot(*(goal - self._pos[i])) > self.config.goal_tolerance
-            if far and _obstacle_gap(goal[0], goal[1], self._verts, self._offsets) >= margin:
-                break
-        return goal

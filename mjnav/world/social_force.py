@@ -40,7 +40,44 @@ GOAL_TIME_SLACK = 5.0
 _GOAL_ATTEMPTS = 100
 
 
-class SocialForceModel(PedestrianModel):
+class GoalSeekingModel(PedestrianModel):
+    """Goal drawing shared by the models whose pedestrians walk to goals (social force, ORCA).
+
+    A subclass provides ``_pos``, ``_radius``, ``_speed``, ``_bounds``, ``_rng``, ``_verts``,
+    ``_offsets``, ``_goal``, ``_time_left`` and :attr:`goal_tolerance`.
+    """
+
+    @property
+    def goal_tolerance(self) -> float:
+        """Distance to the goal at which a new goal is drawn, metres."""
+        raise NotImplementedError
+
+    def _new_goal(self, i: int) -> None:
+        """Draws a goal for pedestrian ``i`` and sets its time budget, s."""
+        self._goal[i] = self._sample_goal(i)
+        distance = math.hypot(*(self._goal[i] - self._pos[i]))
+        speed = self._speed[i]
+        self._time_left[i] = GOAL_TIME_FACTOR * distance / speed + GOAL_TIME_SLACK if speed > 0 else np.inf
+
+    def _sample_goal(self, i: int) -> np.ndarray:
+        """Draws a goal for pedestrian ``i`` in free space, farther than the goal tolerance.
+
+        Rejection sampling over the bounds shrunk by the radius plus :data:`GOAL_CLEARANCE`; after
+        :data:`_GOAL_ATTEMPTS` failures the last draw is kept (the hard guards still hold).
+        """
+        margin = self._radius[i] + GOAL_CLEARANCE
+        low = self._bounds[:2] + margin
+        high = np.maximum(self._bounds[2:] - margin, low)
+        goal = self._pos[i]
+        for _ in range(_GOAL_ATTEMPTS):
+            goal = self._rng.uniform(low, high)
+            far = math.hypot(*(goal - self._pos[i])) > self.goal_tolerance
+            if far and _obstacle_gap(goal[0], goal[1], self._verts, self._offsets) >= margin:
+                break
+        return goal
+
+
+class SocialForceModel(GoalSeekingModel):
     """Goal-seeking pedestrians repelled by each other, walls, obstacles and the robot."""
 
     def __init__(
@@ -94,6 +131,11 @@ class SocialForceModel(PedestrianModel):
         )
 
     @property
+    def goal_tolerance(self) -> float:
+        """Distance to the goal at which a new goal is drawn, metres."""
+        return self._goal_tolerance
+
+    @property
     def goals(self) -> np.ndarray:
         """Current goals, (P, 2), metres (a copy)."""
         return self._goal.copy()
@@ -127,30 +169,6 @@ class SocialForceModel(PedestrianModel):
         if self._redraw.any():
             for i in np.flatnonzero(self._redraw):
                 self._new_goal(i)
-
-    def _new_goal(self, i: int) -> None:
-        """Draws a goal for pedestrian ``i`` and sets its time budget, s."""
-        self._goal[i] = self._sample_goal(i)
-        distance = math.hypot(*(self._goal[i] - self._pos[i]))
-        speed = self._speed[i]
-        self._time_left[i] = GOAL_TIME_FACTOR * distance / speed + GOAL_TIME_SLACK if speed > 0 else np.inf
-
-    def _sample_goal(self, i: int) -> np.ndarray:
-        """Draws a goal for pedestrian ``i`` in free space, farther than the goal tolerance.
-
-        Rejection sampling over the bounds shrunk by the radius plus :data:`GOAL_CLEARANCE`; after
-        :data:`_GOAL_ATTEMPTS` failures the last draw is kept (the hard guards still hold).
-        """
-        margin = self._radius[i] + GOAL_CLEARANCE
-        low = self._bounds[:2] + margin
-        high = np.maximum(self._bounds[2:] - margin, low)
-        goal = self._pos[i]
-        for _ in range(_GOAL_ATTEMPTS):
-            goal = self._rng.uniform(low, high)
-            far = math.hypot(*(goal - self._pos[i])) > self._goal_tolerance
-            if far and _obstacle_gap(goal[0], goal[1], self._verts, self._offsets) >= margin:
-                break
-        return goal
 
 
 @numba.njit(cache=True)
