@@ -36,8 +36,10 @@ the top. (An earlier tuning, on scenarios that overlapped the evaluation set, ch
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from mjnav.control.dynamics import Limits, brake, track_velocity
@@ -94,8 +96,7 @@ def score_velocities(
     steps = np.arange(1, round(cfg.horizon / cfg.rollout_dt) + 1) * cfg.rollout_dt
     path = cand[:, None, :] * steps[None, :, None]  # (S, K, 2)
     if len(points):
-        diff = path[:, :, None, :] - points[None, None, :, :]
-        clear = np.hypot(diff[..., 0], diff[..., 1]).min(axis=2) - limits.inflation
+        clear = _nearest_distance(path, np.ascontiguousarray(points, dtype=np.float64)) - limits.inflation
     else:
         clear = np.full(path.shape[:2], np.inf)
     speed = np.hypot(cand[:, 0], cand[:, 1])
@@ -109,6 +110,31 @@ def score_velocities(
     score = (cfg.w_progress * progress + cfg.w_clearance * clearance
              + cfg.w_speed * speed / (np.sqrt(2.0) * limits.v_max))
     return score, admissible
+
+
+@numba.njit(cache=True)
+def _nearest_distance(path: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(S, K) distance from each rollout point to its nearest obstacle point, metres.
+
+    The same numbers as ``np.hypot(*(path[:, :, None] - points).T).T.min(axis=2)`` (libm's
+    ``hypot`` of the same differences; the minimum propagates NaN as numpy's does), without
+    the (S, K, M) intermediate arrays.
+
+    Args:
+        path: (S, K, 2) rollout points, metres.
+        points: (M ≥ 1, 2) obstacle points, metres.
+    """
+    out = np.empty(path.shape[:2])
+    for s in range(path.shape[0]):
+        for k in range(path.shape[1]):
+            px, py = path[s, k, 0], path[s, k, 1]
+            best = math.hypot(px - points[0, 0], py - points[0, 1])
+            for p in range(1, points.shape[0]):
+                dist = math.hypot(px - points[p, 0], py - points[p, 1])
+                if best == best and (dist < best or dist != dist):
+                    best = dist
+            out[s, k] = best
+    return out
 
 
 class DwaPlanner:
