@@ -116,9 +116,11 @@ def score_velocities(
 def _nearest_distance(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     """(S, K) distance from each rollout point to its nearest obstacle point, metres.
 
-    The same numbers as ``np.hypot(*(path[:, :, None] - points).T).T.min(axis=2)`` (libm's
-    ``hypot`` of the same differences; the minimum propagates NaN as numpy's does), without
-    the (S, K, M) intermediate arrays.
+    The same numbers as ``np.hypot(*(path[:, :, None] - points).T).T.min(axis=2)`` without the
+    (S, K, M) intermediate arrays: squared distances pick the candidates (those within a relative
+    1e-9 of the smallest, far more than ``hypot``'s and the squares' rounding), and the minimum of
+    libm's ``hypot`` over them is numpy's minimum over all; with a NaN, every point counts and the
+    minimum propagates NaN as numpy's does.
 
     Args:
         path: (S, K, 2) rollout points, metres.
@@ -127,14 +129,34 @@ def _nearest_distance(path: np.ndarray, points: np.ndarray) -> np.ndarray:
     out = np.empty(path.shape[:2])
     for s in range(path.shape[0]):
         for k in range(path.shape[1]):
-            px, py = path[s, k, 0], path[s, k, 1]
-            best = math.hypot(px - points[0, 0], py - points[0, 1])
-            for p in range(1, points.shape[0]):
-                dist = math.hypot(px - points[p, 0], py - points[p, 1])
-                if best == best and (dist < best or dist != dist):
-                    best = dist
-            out[s, k] = best
+            out[s, k] = _nearest_one(path[s, k, 0], path[s, k, 1], points)
     return out
+
+
+@numba.njit(cache=True)
+def _nearest_one(px: float, py: float, points: np.ndarray) -> float:
+    """numpy's ``min(hypot(px − x, py − y))`` over the points (see :func:`_nearest_distance`), metres."""
+    best_sq = np.inf
+    for p in range(points.shape[0]):
+        dx, dy = px - points[p, 0], py - points[p, 1]
+        sq = dx * dx + dy * dy
+        if sq != sq:
+            best_sq = np.inf  # NaN: every point is a candidate
+            break
+        best_sq = min(best_sq, sq)
+    bound = best_sq * (1.0 + 1e-9) + 1e-300
+    best = np.nan
+    first = True
+    for p in range(points.shape[0]):
+        dx, dy = px - points[p, 0], py - points[p, 1]
+        if not dx * dx + dy * dy <= bound and bound < np.inf:
+            continue
+        dist = math.hypot(dx, dy)
+        if first:
+            best, first = dist, False
+        elif best == best and (dist < best or dist != dist):
+            best = dist
+    return best
 
 
 class DwaPlanner:
