@@ -19,6 +19,9 @@ operation is the one scipy performs, in the same order, so bands (and episodes) 
 Where numpy's BLAS cannot be found (another numpy build), :func:`available` is false and the
 planner keeps calling ``least_squares``. ``tests/planners/test_trf.py`` compares both on random
 bands, bit for bit.
+
+The loops follow SciPy's ``trf_bounds`` and ``lsmr`` (SciPy, BSD-3-Clause licence, © the SciPy
+developers) step for step, because bit-identity requires the same operations in the same order.
 """
 
 from __future__ import annotations
