@@ -47,6 +47,7 @@ from mjnav.eval.metrics import (
 )
 from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
+from mjnav.jobs import usable_cores
 from mjnav import shipped
 from mjnav.schema import ConfigError
 
@@ -743,7 +744,7 @@ class EvaluateOptions:
         task: Bundled stage name or task YAML path.
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.
-        workers: Worker processes (0: this process; default: one per CPU core).
+        workers: Worker processes (0: this process; default: one per CPU core this process may use).
         out: Output folder (default ``evals/<policy>``).
         seed_offset: Scenario i uses the episode seed 2**32 + seed_offset + i (never a training seed).
         action: ``mean`` (the policy's mean action), ``expected`` or ``sample`` (its Gaussian; checkpoints only).
@@ -781,7 +782,7 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
     opts = parsed.options
     if opts.policy is None:
         raise ValueError("policy= is required (mjnav evaluate --help)")
-    workers = _at_least("workers", os.cpu_count() or 1 if opts.workers is None else opts.workers, 0)
+    workers = _at_least("workers", usable_cores() if opts.workers is None else opts.workers, 0)
     episodes, offset = _at_least("episodes", opts.episodes, 1), _at_least("seed_offset", opts.seed_offset, 0)
     # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.eval.policies import ACTION_MODES

@@ -20,7 +20,6 @@ import dataclasses
 import math
 import shlex
 import sys
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ import yaml
 
 from mjnav import shipped
 from mjnav.args import Grammar, parse
+from mjnav.jobs import unique_stamp
 from mjnav.config import TASK_SECTIONS, TaskConfig
 from mjnav.policy import training_overrides
 from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
@@ -251,7 +251,7 @@ def plan_run(args: RunArgs) -> RunPlan:
             train = load_train([*recipe.train_overrides(), *args.train_overrides])
         task = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
         label = task.name
-    run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
+    run_dir = Path(args.out) / f"{label}-{unique_stamp()}"
     return RunPlan(run_dir, task, train, overrides, state, init=init, start=start)
 
 
@@ -272,7 +272,7 @@ def _plan_recipe(args: RunArgs) -> RunPlan:
     overrides = [*recipe.task_overrides, *args.task_overrides]
     train = load_train([*recipe.train_overrides(), *args.train_overrides])
     task = stages.load_stage(recipe.task, overrides)
-    run_dir = Path(args.out) / f"{task.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    run_dir = Path(args.out) / f"{task.name}-{unique_stamp()}"
     return RunPlan(run_dir, task, train, overrides, init=init, start="recipe")
 
 
