@@ -93,6 +93,8 @@ VERBS: dict[str, Verb] = {
         "sim": _verb("bench sim", "NavSim build, reset and control-step times per LiDAR backend.", "mjnav.bench.sim"),
         "action_layer": _verb("bench action_layer", "Region, action mapping and MPC latencies vs the authors'.",
                               "mjnav.bench.action_layer"),
+        "evalscale": _verb("bench evalscale", "Held-out evaluation episodes/s with 1 and N workers (Ray or local).",
+                           "mjnav.bench.evalscale"),
     }),
 }
 
