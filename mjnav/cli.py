@@ -82,6 +82,8 @@ VERBS: dict[str, Verb] = {
                      "distance": Verb("plot distance", "Success by start-goal distance of evaluation records.",
                                       "mjnav.verbs.plot:distance_grammar", "mjnav.verbs.plot:distance"),
                  }),
+    "sweep": _verb("sweep", "A grid of training runs (overrides x seeds), each evaluated; one table over seeds.",
+                   "mjnav.verbs.sweep"),
     "demo": _verb("demo", "Drive one episode with the convex-MPC planner, report it, export the world.",
                   "mjnav.verbs.demo"),
     "bench": Verb("bench", "Speed benchmarks.", subverbs={

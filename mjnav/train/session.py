@@ -3,7 +3,8 @@
 The arguments are :class:`TrainOptions` plus ``task.*``/``train.*`` overrides and ``seed=`` (the same
 as ``train.seed=``), in the grammar of :mod:`mjnav.args`; ``mjnav train --help`` lists them.
 
-Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
+Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>-<pid>-<4 hex>/`` (:func:`mjnav.jobs.unique_stamp`: runs
+of a job array started in the same second never share a folder): ``config.yaml`` (resolved task and train
 configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
 runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed) and
 ``checkpoint_weights.pt`` (actor with its std and critic, no optimizer state: ~2.3 MB, what a
