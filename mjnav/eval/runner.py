@@ -909,10 +909,10 @@ class EvaluateOptions:
         action: ``mean`` (the policy's mean action), ``expected`` or ``sample`` (its Gaussian; checkpoints only).
         from_contact: Folder of a contact-rule evaluation of the same policy, seeds and commit whose
             settled episodes a ``task.collision=scan`` evaluation takes.
-        shard: ``i/n``: only the episodes whose index is i modulo n, same seeds, into
-            ``<task>.shard-i-of-n.jsonl`` (jobs of an array share one ``out``; ``merge=`` joins them).
-        backend: ``local`` (worker processes on this machine) or ``ray`` (Ray tasks; ``pip install
-            mjnav[ray]``); the same records either way.
+        shard: ``i/n``: only the episodes whose index is i modulo n (same seeds) into
+            ``<task>.shard-i-of-n.jsonl``, so the jobs of an array can share one ``out`` (``merge=`` joins them).
+        backend: ``local`` (worker processes on this machine) or ``ray`` (Ray tasks, ``pip install
+            mjnav[ray]``), with the same records.
         address: Ray cluster to join with ``backend=ray`` (``auto``, ``HOST:6379``); default: a local Ray
             with ``workers`` CPUs.
         merge: Comma-separated shard folders or JSONL files to merge into ``out`` (one JSONL per task and
