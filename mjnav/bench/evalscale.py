@@ -97,7 +97,7 @@ def _measure(spec: Any, out: Path) -> dict[str, float]:
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Time each worker count and print the table and the ratio; returns the exit code."""
     # deferred: the evaluation stack (MuJoCo, planners), not needed by `mjnav bench --help`
-    from mjnav.eval.runner import BACKENDS, EvalSpec, jsonl_name, read_jsonl
+    from mjnav.eval.runner import BACKENDS, EvalError, EvalSpec, jsonl_name, read_jsonl
     from mjnav.policy import training_overrides
 
     opts: EvalScaleOptions = parsed.options
@@ -117,7 +117,11 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         for workers in counts:
             spec = dataclasses.replace(base, workers=workers)
             out = Path(tmp) / f"w{workers}"
-            times = _measure(spec, out)
+            try:
+                times = _measure(spec, out)
+            except (EvalError, ConfigError, ValueError, FileNotFoundError) as err:  # no Ray, a bad task
+                print(f"error: {err}", file=sys.stderr)
+                return 2
             records = [_comparable(r) for r in read_jsonl(out / jsonl_name(base.task))]
             reference = records if reference is None else reference
             rows.append((workers, times, records == reference))

@@ -22,6 +22,8 @@ def test_one_run_prints_the_ratio_and_same_records(backend, capsys) -> None:
     assert out.count("| yes |") == 2
 
 
-def test_bad_worker_counts_are_one_error_line(capsys) -> None:
+def test_bad_input_is_one_error_line(capsys) -> None:
     assert main(["bench", "evalscale", "workers=0,2", *SHORT]) == 2
     assert capsys.readouterr().err.startswith("error: workers:")
+    assert main(["bench", "evalscale", "backend=local", "task=stage99", *SHORT]) == 2
+    assert capsys.readouterr().err.startswith("error:")
