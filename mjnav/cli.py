@@ -82,6 +82,8 @@ VERBS: dict[str, Verb] = {
                      "distance": Verb("plot distance", "Success by start-goal distance of evaluation records.",
                                       "mjnav.verbs.plot:distance_grammar", "mjnav.verbs.plot:distance"),
                  }),
+    "sweep": _verb("sweep", "A grid of training runs (overrides x seeds), each evaluated; one table over seeds.",
+                   "mjnav.verbs.sweep"),
     "demo": _verb("demo", "Drive one episode with the convex-MPC planner, report it, export the world.",
                   "mjnav.verbs.demo"),
     "bench": Verb("bench", "Speed benchmarks.", subverbs={
@@ -93,6 +95,8 @@ VERBS: dict[str, Verb] = {
         "sim": _verb("bench sim", "NavSim build, reset and control-step times per LiDAR backend.", "mjnav.bench.sim"),
         "action_layer": _verb("bench action_layer", "Region, action mapping and MPC latencies vs the authors'.",
                               "mjnav.bench.action_layer"),
+        "evalscale": _verb("bench evalscale", "Held-out evaluation episodes/s with 1 and N workers (Ray or local).",
+                           "mjnav.bench.evalscale"),
     }),
 }
 

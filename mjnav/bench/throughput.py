@@ -35,6 +35,7 @@ import numpy as np
 from mjnav.args import Grammar, Parsed
 from mjnav.config import TASK_SECTIONS, load_task
 from mjnav.envs.gym_env import NavGymEnv
+from mjnav.jobs import usable_cores
 from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
 from mjnav.train.config import TrainConfig
@@ -204,7 +205,7 @@ def bench(config, opts: ThroughputOptions) -> None:
     closers = [single.env.close for single in singles.values()]
     vecs: dict[str, VecBench] = {}
     try:
-        for label, workers, in_main in adapter_rows(os.cpu_count() or 1):
+        for label, workers, in_main in adapter_rows(usable_cores()):
             vecs[label] = VecBench(config, num_envs, workers, opts.vec_steps, seed, in_main)
             blocks[label] = vecs[label].block
             closers.append(vecs[label].env.close)

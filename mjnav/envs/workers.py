@@ -24,6 +24,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from mjnav.jobs import usable_cores
+
 __all__ = ["OUTCOMES", "EnvError", "usable_cores"]
 
 OUTCOMES: tuple[str, ...] = ("running", "success", "collision", "timeout")
@@ -285,11 +287,6 @@ def _context(start_method: str) -> Any:
         with _worker_environment():
             forkserver.ensure_running()
     return ctx
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity mask where the OS has one)."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _default_workers(num_envs: int) -> int:
