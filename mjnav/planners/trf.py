@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from scipy.linalg import qr
+from scipy.linalg import get_lapack_funcs, qr
 from scipy.optimize._lsq.common import (
     CL_scaling_vector,
     build_quadratic_1d,
@@ -413,6 +413,34 @@ def _lsmr(ddot, pow_, indptr, indices, data, d, diag, b, m):
 
 # ---------------------------------------------------------------------------- trust region reflective
 
+_POTRF, _POTRS = get_lapack_funcs(("potrf", "potrs"), (np.zeros((2, 2)),))
+
+
+def _trust_region_2d(B: np.ndarray, g: np.ndarray, Delta: float) -> np.ndarray:
+    """scipy's ``solve_trust_region_2d(B, g, Delta)[0]`` with the same LAPACK and numpy calls, without
+    scipy's wrappers: the Newton step if ``B`` is positive definite and the step within the region,
+    else the best boundary point from the roots of scipy's quartic. A non-finite ``B`` or ``g`` goes
+    to scipy's function (which raises as it always did)."""
+    if not (np.isfinite(B).all() and np.isfinite(g).all()):
+        return solve_trust_region_2d(B, g, Delta)[0]
+    c, info = _POTRF(B, lower=False, overwrite_a=False, clean=False)
+    if info < 0 or (info == 0 and not np.isfinite(c).all()):
+        return solve_trust_region_2d(B, g, Delta)[0]
+    if info == 0:
+        x, info = _POTRS(c, g, lower=False, overwrite_b=False)
+        if info != 0:
+            return solve_trust_region_2d(B, g, Delta)[0]
+        p = -x
+        if np.dot(p, p) <= Delta**2:
+            return p
+    a, b, c = B[0, 0] * Delta**2, B[0, 1] * Delta**2, B[1, 1] * Delta**2
+    d, f = g[0] * Delta, g[1] * Delta
+    t = np.roots(np.array([-b + d, 2 * (a - c + f), 6 * b, 2 * (-a + c + f), -b - d]))
+    t = np.real(t[np.isreal(t)])
+    p = Delta * np.vstack((2 * t / (1 + t**2), (1 - t**2) / (1 + t**2)))
+    value = 0.5 * np.sum(p * B.dot(p), axis=0) + np.dot(g, p)
+    return p[:, np.argmin(value)]
+
 
 class _Problem:
     """One call's residual function and Jacobian (scipy's ``VectorFunction`` with finite differences)."""
@@ -520,7 +548,7 @@ def _trf_bounds(prob: _Problem, x0: np.ndarray, f0: np.ndarray, ub: np.ndarray, 
         theta = max(0.995, 1 - g_norm)
         actual_reduction = -1
         while actual_reduction <= 0 and nfev < max_nfev:
-            p_S, _ = solve_trust_region_2d(B_S, g_S, Delta)
+            p_S = _trust_region_2d(B_S, g_S, Delta)
             p_h = S.dot(p_S)
             p = d * p_h
             step, step_h, predicted_reduction = select_step(x, J_h, diag_h, g_h, p, p_h, d, Delta, lb, ub, theta)
