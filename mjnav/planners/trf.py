@@ -13,12 +13,14 @@ operation is the one scipy performs, in the same order, so bands (and episodes) 
 * sums over matrix entries run in CSR/CSC order from zero, as scipy's ``csr_matvec``/``csc_matvec``;
 * vector norms and dot products call the ``ddot`` of numpy's own BLAS (``numpy.dot`` does), found
   with ctypes in numpy's bundled OpenBLAS (:func:`blas_ddot`);
-* scalar powers call libm's ``pow`` (as numpy's scalar ``**`` does) and hypotenuses libm's
-  ``hypot`` (as ``numpy.hypot`` does).
+* scalar powers call libm's ``pow`` (as numpy's scalar ``**`` does: ``np.float64(x) ** 2`` differs
+  from ``x * x`` about once in a thousand) and hypotenuses libm's ``hypot`` (as ``numpy.hypot``
+  does; Python's ``math.hypot`` differs from it).
 
-Where numpy's BLAS cannot be found (another numpy build), :func:`available` is false and the
-planner keeps calling ``least_squares``. ``tests/planners/test_trf.py`` compares both on random
-bands, bit for bit.
+Where numpy's BLAS, libm or scipy's private helpers cannot be found (another numpy build or
+platform, another scipy layout), :func:`available` is false and the planner keeps calling
+``least_squares``. ``tests/planners/test_trf.py`` compares both on random bands, bit for bit, with
+the installed scipy (written against scipy 1.17).
 """
 
 from __future__ import annotations
@@ -33,18 +35,23 @@ from typing import NamedTuple
 import numba
 import numpy as np
 from scipy.linalg import get_lapack_funcs, qr
-from scipy.optimize._lsq.common import (
-    CL_scaling_vector,
-    build_quadratic_1d,
-    check_termination,
-    in_bounds,
-    make_strictly_feasible,
-    minimize_quadratic_1d,
-    solve_trust_region_2d,
-    update_tr_radius,
-)
-from scipy.optimize._lsq.trf import select_step
-from scipy.optimize._numdiff import _eps_for_method, group_columns
+try:  # scipy's private helpers: the algorithm this module reproduces (checked against scipy 1.17)
+    from scipy.optimize._lsq.common import (
+        CL_scaling_vector,
+        build_quadratic_1d,
+        check_termination,
+        in_bounds,
+        make_strictly_feasible,
+        minimize_quadratic_1d,
+        solve_trust_region_2d,
+        update_tr_radius,
+    )
+    from scipy.optimize._lsq.trf import select_step
+    from scipy.optimize._numdiff import _eps_for_method, group_columns
+except ImportError:  # another scipy layout: available() is false and TEB calls least_squares
+    _SCIPY_HELPERS = False
+else:
+    _SCIPY_HELPERS = True
 
 __all__ = ["BandTerms", "available", "blas_ddot", "residuals", "solve_band", "structure"]
 
@@ -94,7 +101,7 @@ def _libm_pow() -> ctypes._CFuncPtr | None:
 
 def available() -> bool:
     """Whether :func:`solve_band` can reproduce ``least_squares`` here (numpy's BLAS and libm found)."""
-    return blas_ddot() is not None and _libm_pow() is not None
+    return _SCIPY_HELPERS and blas_ddot() is not None and _libm_pow() is not None
 
 
 # ---------------------------------------------------------------------------- residuals
