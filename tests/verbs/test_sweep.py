@@ -37,6 +37,16 @@ def test_the_grid_is_every_combination_checked_before_any_run(tmp_path: Path) ->
     assert len({c.folder for c in cells}) == len(cells)
 
 
+def test_a_ray_cell_uses_only_the_cpus_it_reserves(tmp_path: Path) -> None:
+    argv = ["task=stage2", "seeds=0", "backend=ray", "cpus_per_run=2", f"out={tmp_path}"]
+    cell = _cells(argv)[0]
+    assert cell.train[-3:-1] == ("train.workers=2", "train.update_threads=2")
+    assert cell.evaluate[-1] == "workers=2"
+    given = _cells([*argv, "train.update_threads=1", "workers=3"])[0]
+    assert "train.update_threads=1" in given.train and "train.update_threads=2" not in given.train
+    assert "train.workers=2" in given.train and given.evaluate[-1] == "workers=3"
+
+
 @pytest.mark.parametrize(("token", "message"), [
     ("grid=task.design", "grid: expected KEY=V1,V2"),
     ("grid=task.desing=design1", "desing"),
