@@ -4,6 +4,7 @@
     python experiments/imitation.py collect OUT.npz STAGES N SEED0 [STUDENT_CKPT BETA]   # (obs, target logits); DAgger if student
     python experiments/imitation.py fit OUT_DIR BASE_CKPT DATA.npz [DATA2.npz ...]       # BC of the actor -> OUT_DIR/model_0.pt
     python experiments/imitation.py student CKPT STAGE N SEED0       # success of the student (mean action)
+    python experiments/imitation.py widen OUT.pt BASE_CKPT K         # BASE for observation.tracks=K (zero columns)
 
 The teacher's Q_l is mpc_gap's; its action keeps (α_s, β_s) = (0.5, 0.3) (Q_s a little behind the
 robot, where it hardly moves the MPC, as the PPO policies do), so α_l ≈ 0.5 for a Q_l ahead: no
@@ -19,6 +20,12 @@ control period), which the student never sees; IMIT_VO overrides its MpcCrowdCon
 IMIT_CONSISTENT=w (with IMIT_TEACHER=vo, in DAgger collection) adds w·cos(candidate, the acting
 student's Q_l direction) to the teacher's score, so that among near-equal detours it labels the
 student's own (docs/results.md: no gain at w = 0.3).
+
+"Ours + tracks" (``observation.tracks=K``, :mod:`mjnav.tasks.observation`): put
+``observation.tracks=K`` in IMIT_OVERRIDES, so that the student sees the K nearest tracks of the
+robot's own LiDAR tracker (not privileged) after the 399 values, and start from ``widen``'s copy
+of a shipped checkpoint (5K zero input columns: it acts exactly as the shipped policy). The
+teacher may stay privileged (IMIT_TEACHER=vo): it labels at training time only.
 """
 
 from __future__ import annotations
@@ -157,6 +164,21 @@ def main(argv):
         ckpt, stage, n, seed0 = argv[1], argv[2], int(argv[3]), int(argv[4])
         pol = load_student(ckpt)
         print(stage, run(stage, n, seed0, lambda env, obs: pol(obs)), flush=True)
+    elif mode == "widen":
+        import torch
+
+        from mjnav.tasks.observation import TRACK_FEATURES
+        from mjnav.train.runner import widen_columns
+
+        out, base, count = Path(argv[1]), argv[2], int(argv[3])
+        ckpt = torch.load(base, map_location="cpu", weights_only=False)
+        width = ckpt["actor_state_dict"]["mlp.0.weight"].shape[1]
+        for part in ("actor_state_dict", "critic_state_dict"):
+            ckpt[part] = widen_columns(ckpt[part], width, TRACK_FEATURES * count)
+        ckpt.pop("optimizer_state_dict", None)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        torch.save(ckpt, out)
+        print("wrote", out, f"({width} -> {width + TRACK_FEATURES * count} inputs)")
     elif mode == "collect":
         out, stages, n, seed0 = argv[1], argv[2].split(","), int(argv[3]), int(argv[4])
         student = load_student(argv[5]) if len(argv) > 5 else None

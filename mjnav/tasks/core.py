@@ -135,8 +135,9 @@ class NavCore:
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
 
     # ------------------------------------------------------------------ episode
-    def reset(self, goal: np.ndarray, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray) -> np.ndarray:
-        """Start an episode; returns the first (stacked) observation."""
+    def reset(self, goal: np.ndarray, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray,
+              tracks: np.ndarray | None = None) -> np.ndarray:
+        """Start an episode; returns the first (stacked) observation (``tracks``: see :meth:`finish_step`)."""
         self.goal = np.asarray(goal, dtype=np.float64).copy()
         self._goal = tuple(self.goal.tolist())  # plain floats for the per-step arithmetic
         self.steps = 0
@@ -152,7 +153,15 @@ class NavCore:
         if self._aligned is not None:
             self._aligned.reset(self.region.boundary_xy, position)
             obs = self._align(obs, position)
-        return obs
+        return self._with_tracks(obs, position, tracks)
+
+    def _with_tracks(self, obs: np.ndarray, position: np.ndarray, tracks: np.ndarray | None) -> np.ndarray:
+        """``observation.tracks=K``: the stack followed by the K nearest tracks (float32); else ``obs``."""
+        count = self.config.observation.tracks
+        if not count:
+            return obs
+        block = obs_lib.tracks_block(tracks, position, count, self.frame_rotation(position))
+        return np.concatenate([obs, block.astype(np.float32)])
 
     def _align(self, obs: np.ndarray, position: np.ndarray) -> np.ndarray:
         """``observation.history='aligned'``: re-read the older polygon blocks from ``position``."""
@@ -314,7 +323,8 @@ class NavCore:
 
     # ------------------------------------------------------------------ scoring
     def finish_step(
-        self, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray, contact: bool
+        self, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray, contact: bool,
+        tracks: np.ndarray | None = None,
     ) -> tuple[np.ndarray, float, dict[str, float]]:
         """Score the step that just ran and build the next observation.
 
@@ -323,6 +333,8 @@ class NavCore:
             velocity: Robot velocity after the step, m/s.
             scan: LiDAR ranges after the step, metres.
             contact: A MuJoCo contact between the robot and the world happened.
+            tracks: (T, 5) ``[x, y, vx, vy, r]`` the LiDAR tracker's confirmed tracks after this
+                scan (world frame, metres, m/s), read with ``observation.tracks`` > 0 only.
 
         Returns:
             (observation, reward, weighted reward terms).
@@ -358,6 +370,7 @@ class NavCore:
         if self._aligned is not None:
             self._aligned.push(self.region.boundary_xy, position)
             obs = self._align(obs, position)
+        obs = self._with_tracks(obs, position, tracks)
         self.timers["observation"] += time.perf_counter() - t0
         return obs, reward, terms
 
@@ -374,4 +387,4 @@ class NavCore:
     def observation_size(self) -> int:
         """Length of the stacked observation."""
         return obs_lib.observation_size(self.config.observation.frames, self.config.region.num_points,
-                                        self.design.state_size)
+                                        self.design.state_size, self.config.observation.tracks)

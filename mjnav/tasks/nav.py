@@ -18,6 +18,7 @@ from dm_control.composer.observation import observable
 from dm_env import specs
 
 from mjnav.geometry.raycast import beam_angles, cast_rays
+from mjnav.perception import Tracker, TrackerConfig
 from mjnav.planners.base import declared_privileged
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
@@ -41,6 +42,8 @@ class CrowdNavTask(composer.Task):
         self._obs = np.zeros(self.core.observation_size, dtype=np.float32)
         self._critic = np.zeros(critic_size(config.observation.critic_pedestrians), dtype=np.float32)
         self._tracker = CrowdTracker()
+        self._lidar_tracker = (Tracker(TrackerConfig(noise_std=config.lidar.noise_std), config.lidar.beams,
+                                       config.lidar.max_range) if config.observation.tracks else None)
         self._reward = 0.0
         self.terms: dict[str, float] = {}
         self.next_episode_seed: int | None = None
@@ -88,7 +91,9 @@ class CrowdNavTask(composer.Task):
         self.layout = self.sim.initialize_episode(physics, self.rng)
         p, v, _ = self.sim.robot_state(physics)
         scan = self._scan = self.sim.scan(physics, self.rng)
-        self._obs[:] = self.core.reset(self.layout.goal, p, v, scan)
+        if self._lidar_tracker is not None:
+            self._lidar_tracker.reset()
+        self._obs[:] = self.core.reset(self.layout.goal, p, v, scan, self._track(scan, p))
         self._tracker.reset()
         self._observe_crowd(physics, p)
         if self.planner is not None:
@@ -150,9 +155,17 @@ class CrowdNavTask(composer.Task):
         scan = self._scan = self.sim.scan(physics, self.rng)
         self.timers["lidar"] += time.perf_counter() - t0
         contact, self.contact_kind = self.sim.robot_in_collision(physics)
-        obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact)
+        obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact, self._track(scan, p))
         self._obs[:] = obs
         self._observe_crowd(physics, p)
+
+    def _track(self, scan: np.ndarray, position: np.ndarray) -> np.ndarray | None:
+        """Step the LiDAR tracker with this scan and the robot's position (its odometry); the
+        confirmed tracks ``(T, 5)`` ``[x, y, vx, vy, r]`` (world frame), or None when it is off."""
+        if self._lidar_tracker is None:
+            return None
+        self._lidar_tracker.step(scan, position, self.config.timing.control_period)
+        return self._lidar_tracker.track_array()[:, :5]
 
     def _observe_crowd(self, physics, position: np.ndarray) -> None:
         """Refresh the privileged critic input (``observation.critic_pedestrians`` > 0)."""
