@@ -18,8 +18,7 @@ from dm_control.composer.observation import observable
 from dm_env import specs
 
 from mjnav.geometry.raycast import beam_angles, cast_rays
-from mjnav.perception import Tracker, TrackerConfig
-from mjnav.planners.base import declared_privileged
+from mjnav.planners.base import declared_privileged, declared_tracks
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
 from mjnav.tasks.privileged import CrowdTracker, critic_size, pedestrian_features
@@ -42,8 +41,6 @@ class CrowdNavTask(composer.Task):
         self._obs = np.zeros(self.core.observation_size, dtype=np.float32)
         self._critic = np.zeros(critic_size(config.observation.critic_pedestrians), dtype=np.float32)
         self._tracker = CrowdTracker()
-        self._lidar_tracker = (Tracker(TrackerConfig(noise_std=config.lidar.noise_std), config.lidar.beams,
-                                       config.lidar.max_range) if config.observation.tracks else None)
         self._reward = 0.0
         self.terms: dict[str, float] = {}
         self.next_episode_seed: int | None = None
@@ -91,9 +88,8 @@ class CrowdNavTask(composer.Task):
         self.layout = self.sim.initialize_episode(physics, self.rng)
         p, v, _ = self.sim.robot_state(physics)
         scan = self._scan = self.sim.scan(physics, self.rng)
-        if self._lidar_tracker is not None:
-            self._lidar_tracker.reset()
-        self._obs[:] = self.core.reset(self.layout.goal, p, v, scan, self._track(scan, p))
+        self.core.use_tracks(self.tracks_enabled)
+        self._obs[:] = self.core.reset(self.layout.goal, p, v, scan)
         self._tracker.reset()
         self._observe_crowd(physics, p)
         if self.planner is not None:
@@ -101,6 +97,24 @@ class CrowdNavTask(composer.Task):
         self._reward = 0.0
         self.terms = {}
         self.contact_kind = None
+
+    @property
+    def tracks_enabled(self) -> bool:
+        """Whether the LiDAR tracker runs this episode: ``tracks.enabled``, a planner declaring
+        ``uses_tracks`` or an observation holding tracks (``observation.tracks`` > 0); decided at
+        each episode start."""
+        return self.config.tracks.enabled or self.config.observation.tracks > 0 or declared_tracks(self.planner)
+
+    @property
+    def tracks(self) -> np.ndarray | None:
+        """(T, 5) ``[x, y, vx, vy, r]`` the tracker's confirmed moving pedestrians after the last scan,
+        world frame (metres, m/s), nearest first, read-only (:attr:`NavCore.tracks`); None when off.
+
+        Updated right after each scan (episode start and every step), so the planner of the next
+        step and the observation of this one see the same tracks. Made from the robot's noisy scan
+        and its position only: no simulator ground truth, no random draw.
+        """
+        return self.core.tracks
 
     def before_step(self, physics, action, random_state) -> None:
         """Turn the action into a jerk command for the coming control period."""
@@ -155,17 +169,9 @@ class CrowdNavTask(composer.Task):
         scan = self._scan = self.sim.scan(physics, self.rng)
         self.timers["lidar"] += time.perf_counter() - t0
         contact, self.contact_kind = self.sim.robot_in_collision(physics)
-        obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact, self._track(scan, p))
+        obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact)
         self._obs[:] = obs
         self._observe_crowd(physics, p)
-
-    def _track(self, scan: np.ndarray, position: np.ndarray) -> np.ndarray | None:
-        """Step the LiDAR tracker with this scan and the robot's position (its odometry); the
-        confirmed tracks ``(T, 5)`` ``[x, y, vx, vy, r]`` (world frame), or None when it is off."""
-        if self._lidar_tracker is None:
-            return None
-        self._lidar_tracker.step(scan, position, self.config.timing.control_period)
-        return self._lidar_tracker.track_array()[:, :5]
 
     def _observe_crowd(self, physics, position: np.ndarray) -> None:
         """Refresh the privileged critic input (``observation.critic_pedestrians`` > 0)."""
