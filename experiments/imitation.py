@@ -25,7 +25,9 @@ student's own (docs/results.md: no gain at w = 0.3).
 ``observation.tracks=K`` in IMIT_OVERRIDES, so that the student sees the K nearest tracks of the
 robot's own LiDAR tracker (not privileged) after the 399 values, and start from ``widen``'s copy
 of a shipped checkpoint (5K zero input columns: it acts exactly as the shipped policy). The
-teacher may stay privileged (IMIT_TEACHER=vo): it labels at training time only.
+teacher may stay privileged (IMIT_TEACHER=vo): it labels at training time only. BC_NEW_INPUTS=399
+makes ``fit`` move only the first layer's columns 399 and up (the tracks' weights): the student is
+the base policy plus what the tracks add.
 """
 
 from __future__ import annotations
@@ -136,6 +138,21 @@ def load_student(ckpt):
     return lambda obs: net(torch.as_tensor(obs, dtype=torch.float32)[None]).detach().numpy()[0]
 
 
+def _new_columns_only(net, first: int) -> list:
+    """Freeze ``net`` except its first layer's weight columns ``first:`` (the inputs a widened
+    checkpoint added, e.g. the tracks): the fit can only add what those inputs say to the base policy."""
+    import torch
+
+    weight = next(m.weight for m in net.modules() if isinstance(m, torch.nn.Linear))
+    for p in net.parameters():
+        p.requires_grad_(False)
+    weight.requires_grad_(True)
+    mask = torch.zeros_like(weight)
+    mask[:, first:] = 1.0
+    weight.register_hook(lambda grad: grad * mask)
+    return [weight]
+
+
 def run(stage, n, seed0, act, record=None, teacher_label=False):
     env = make_env(stage)
     outcomes = {}
@@ -205,7 +222,10 @@ def main(argv):
         ckpt = torch.load(base, map_location="cpu", weights_only=False)
         net = build_actor(ckpt["actor_state_dict"], ("relu", "relu", "hardswish"))
         epochs = int(os.environ.get("BC_EPOCHS", "30"))
-        opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+        params = list(net.parameters())
+        if "BC_NEW_INPUTS" in os.environ:  # fit only the first layer's columns from this input on
+            params = _new_columns_only(net, int(os.environ["BC_NEW_INPUTS"]))
+        opt = torch.optim.Adam(params, lr=1e-3)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
         torch.manual_seed(0)
         n = len(obs)
