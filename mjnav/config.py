@@ -19,6 +19,7 @@ from mjnav.args import task_overrides
 from mjnav.control.action import ActionConfig
 from mjnav.control.mpc import MpcConfig
 from mjnav.geometry.region import RegionConfig
+from mjnav.perception.tracker import TracksConfig
 from mjnav.resources import tasks_dir
 from mjnav.schema import (
     ArenaConfig,
@@ -68,6 +69,7 @@ class TaskConfig:
     mpc: MpcConfig = MpcConfig()
     reward: RewardConfig = RewardConfig()
     observation: ObservationConfig = ObservationConfig()
+    tracks: TracksConfig = TracksConfig()
 
     def _derived(self) -> dict[str, dict[str, tuple[str, Any]]]:
         """Copies the action layer keeps of other sections: ``{section: {field: (source key, value)}}``."""
@@ -79,6 +81,7 @@ class TaskConfig:
             "action": {"t_c": ("timing.control_period", t_c), "jerk_max": ("robot.j_max", robot.j_max),
                        "long_time": ("mpc.horizon x timing.control_period", self.mpc.horizon * t_c)},
             "region": {"max_range": ("lidar.max_range", self.lidar.max_range)},
+            "tracks": {"noise_std": ("lidar.noise_std", self.lidar.noise_std)},
         }
 
     def __post_init__(self) -> None:

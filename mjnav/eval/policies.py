@@ -32,7 +32,7 @@ import numpy as np
 
 from mjnav.planners import RandomActionPolicy, is_planner_spec, resolve_planner
 from mjnav.policy import display_name, find_policy, input_size, is_checkpoint, load_actor, torch_actor
-from mjnav.planners.base import declared_privileged
+from mjnav.planners.base import declared_privileged, declared_tracks
 from mjnav.schema import ConfigError
 
 __all__ = ["ACTION_MODES", "Agent", "TimedPlanner", "load_policy", "planner_record"]
@@ -58,6 +58,11 @@ class TimedPlanner:
     def privileged(self) -> frozenset[str]:
         """The wrapped planner's declared ground truth (:func:`mjnav.planners.base.declared_privileged`)."""
         return declared_privileged(self.planner)
+
+    @property
+    def uses_tracks(self) -> bool:
+        """Whether the wrapped planner reads the LiDAR tracks (:func:`mjnav.planners.base.declared_tracks`)."""
+        return declared_tracks(self.planner)
 
     def reset(self, config: TaskConfig, rng: np.random.Generator) -> None:
         """Forward to the planner and clear the timings."""

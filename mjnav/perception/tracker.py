@@ -21,7 +21,7 @@ from mjnav.geometry.raycast import beam_angles
 from mjnav.perception.filter import CONFIRMED, TrackArrays, update_kernel
 from mjnav.perception.segment import detect_kernel
 
-__all__ = ["Track", "Tracker", "TrackerConfig", "nearest_tracks"]
+__all__ = ["Track", "Tracker", "TrackerConfig", "TracksConfig", "nearest_tracks"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,8 +29,8 @@ class TrackerConfig:
     """The tracker's settings (metres, seconds, control steps).
 
     Attributes:
-        noise_std: LiDAR range noise σ, m (the task's ``lidar.noise_std``); sets the margin below
-            the maximum range at which a beam counts as a miss (3σ).
+        noise_std: LiDAR range noise σ, m, >= 0 (the task's ``lidar.noise_std``); sets the margin
+            below the maximum range at which a beam counts as a miss (3σ).
         detect_range: Pieces of the scan whose nearest beam is farther than this are not reported
             (they are still segmented, so far walls stay walls), m.
         range_jump: Neighbouring beams whose ranges differ by more than this start a new cluster, m.
@@ -91,7 +91,9 @@ class TrackerConfig:
     capacity: int = 128
 
     def __post_init__(self) -> None:
-        positive = ("noise_std", "detect_range", "range_jump", "line_tolerance", "line_min_length",
+        if not self.noise_std >= 0.0:
+            raise ValueError(f"tracker.noise_std: {self.noise_std} must be >= 0")
+        positive = ("detect_range", "range_jump", "line_tolerance", "line_min_length",
                     "max_width", "accel_std", "measurement_std", "initial_speed_std", "gate", "gate_chi2",
                     "static_distance", "map_cell", "map_size")
         for name in positive:
@@ -110,6 +112,20 @@ class TrackerConfig:
         if self.confirm_hits > self.confirm_window:
             raise ValueError(f"tracker.confirm_hits: {self.confirm_hits} exceeds confirm_window "
                              f"({self.confirm_window}): no track could be confirmed")
+
+
+@dataclasses.dataclass(frozen=True)
+class TracksConfig(TrackerConfig):
+    """The task's ``tracks`` section: the tracker inside the task loop (:class:`TrackerConfig`'s
+    fields, ``noise_std`` derived from ``lidar.noise_std``) and whether it runs.
+
+    Attributes:
+        enabled: Run the tracker in every episode; it also runs, whatever this says, when the
+            planner declares ``uses_tracks`` (:func:`mjnav.planners.base.declared_tracks`).
+            Off by default: an episode without tracks is the same as before they existed.
+    """
+
+    enabled: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

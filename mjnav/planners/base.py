@@ -17,7 +17,7 @@ from mjnav.geometry.region import Region
 if typing.TYPE_CHECKING:
     from mjnav.config import TaskConfig
 
-__all__ = ["PRIVILEGED_FIELDS", "Planner", "PlannerInput", "declared_privileged"]
+__all__ = ["PRIVILEGED_FIELDS", "Planner", "PlannerInput", "declared_privileged", "declared_tracks"]
 
 #: The ground truth a planner may declare in its ``privileged`` attribute (pedestrian positions,
 #: velocities, radii and goals, as the simulation's crowd model has them).
@@ -47,6 +47,10 @@ class PlannerInput:
         pedestrian_radii: (P,) pedestrian disc radii, metres (``"radii"``).
         pedestrian_goals: (P, 2) where each pedestrian is heading, world frame, metres (``"goals"``;
             NaN rows for crowd models without goals, such as the random walk).
+        tracks: (T, 5) ``[x, y, vx, vy, r]`` the robot's own LiDAR tracker estimates of the moving
+            pedestrians (world frame, metres, m/s), nearest to the robot first; not privileged
+            (made from this step's ``scan`` and ``position`` only). None unless the planner declared
+            ``uses_tracks`` or the task has ``tracks.enabled`` (:func:`declared_tracks`).
     """
 
     scan: np.ndarray
@@ -61,6 +65,7 @@ class PlannerInput:
     pedestrian_velocities: np.ndarray | None = None
     pedestrian_radii: np.ndarray | None = None
     pedestrian_goals: np.ndarray | None = None
+    tracks: np.ndarray | None = None
 
     @property
     def pedestrians(self) -> np.ndarray:
@@ -90,6 +95,19 @@ def declared_privileged(planner: object) -> frozenset[str]:
     return frozenset(declared)
 
 
+def declared_tracks(planner: object) -> bool:
+    """Whether ``planner`` (an instance or its class; None: no planner) reads the LiDAR tracks: its
+    ``uses_tracks`` attribute (False when absent). An instance may decide it from its parameters.
+
+    Raises:
+        ValueError: ``uses_tracks`` is not a bool.
+    """
+    declared = getattr(planner, "uses_tracks", False)
+    if not isinstance(declared, (bool, np.bool_)):
+        raise ValueError(f"planner {_name(planner)}: uses_tracks must be True or False, got {declared!r}")
+    return bool(declared)
+
+
 def _name(planner: object) -> str:
     return planner.__name__ if isinstance(planner, type) else type(planner).__name__
 
@@ -98,7 +116,8 @@ class Planner(typing.Protocol):
     """A baseline controller: replaces the learned action layer, same episode and scoring.
 
     Optional attributes: ``privileged`` (the ground truth it reads, a subset of
-    :data:`PRIVILEGED_FIELDS`; none when absent), ``config_class`` (the dataclass its constructor
+    :data:`PRIVILEGED_FIELDS`; none when absent), ``uses_tracks`` (True: it reads
+    :attr:`PlannerInput.tracks`, and the task runs the LiDAR tracker for it), ``config_class`` (the dataclass its constructor
     takes, for ``planner.<field>=value``) and ``stats`` (a dict of integer counters recorded per
     episode). The planners guide of the documentation describes each.
     """

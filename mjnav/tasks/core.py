@@ -21,6 +21,7 @@ from mjnav.control.dynamics import Limits, escape, track_velocity
 from mjnav.control.guarded import GuardedMpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, RegionFinder, scan_polygon
+from mjnav.perception.tracker import Tracker
 from mjnav.planners.base import Planner, PlannerInput
 from mjnav.tasks import observation as obs_lib
 from mjnav.tasks import reward as reward_lib
@@ -133,6 +134,39 @@ class NavCore:
         self._reward_terms = reward_lib.weighted_terms(config.reward)
         self.counters = {"region_failures": 0, "region_recoveries": 0, "escapes": 0, "fallbacks": 0, "steps": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
+        self._tracker: Tracker | None = None  # the LiDAR tracker, built by use_tracks(True)
+        self._tracks_on = False
+        self._tracks: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ tracks
+    def use_tracks(self, enabled: bool) -> None:
+        """Run the LiDAR pedestrian tracker from the next :meth:`reset` on (or stop it).
+
+        The tracker (:class:`mjnav.perception.Tracker`, ``config.tracks``) is built on first use
+        and reset with every episode; it reads only the scans and positions given to
+        :meth:`reset` and :meth:`finish_step` and draws no random number.
+        """
+        self._tracks_on = bool(enabled)
+        if self._tracks_on and self._tracker is None:
+            lidar = self.config.lidar
+            self._tracker = Tracker(self.config.tracks, beams=lidar.beams, max_range=lidar.max_range)
+
+    @property
+    def tracks(self) -> np.ndarray | None:
+        """(T, 5) ``[x, y, vx, vy, r]`` confirmed moving-pedestrian tracks from the last scan (world
+        frame, metres, m/s), nearest to the robot first (read-only); None when the tracker is off."""
+        return self._tracks if self._tracks_on else None
+
+    def _update_tracks(self, scan: np.ndarray, position: np.ndarray) -> None:
+        """One tracker step on the scan just taken at ``position`` (metres); no-op when off."""
+        if not self._tracks_on:
+            self._tracks = None
+            return
+        self._tracker.step(scan, position, self.config.timing.control_period)
+        found = self._tracker.track_array()[:, :5]
+        order = np.argsort(np.hypot(found[:, 0] - position[0], found[:, 1] - position[1]), kind="stable")
+        self._tracks = np.ascontiguousarray(found[order])
+        self._tracks.flags.writeable = False
 
     # ------------------------------------------------------------------ episode
     def reset(self, goal: np.ndarray, position: np.ndarray, velocity: np.ndarray, scan: np.ndarray) -> np.ndarray:
@@ -146,13 +180,25 @@ class NavCore:
         self._plan: obs_lib.Plan | None = None
         self._prev = {"q_s": None, "q_l": None, "plan_ok": False, "distance": None, "velocity": velocity.copy()}
         self.record: StepRecord | None = None
+        if self._tracks_on:
+            self._tracker.reset()
+        self._update_tracks(scan, position)
         self.region = self._region(scan)  # not timed: part of reset
         polygon, state = self._frame(position, velocity)
         obs = self._stack.reset(polygon, state)
         if self._aligned is not None:
             self._aligned.reset(self.region.boundary_xy, position)
             obs = self._align(obs, position)
-        return obs
+        return self._with_tracks(obs, position)
+
+    def _with_tracks(self, obs: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """``observation.tracks=K``: the stack followed by the K nearest of :attr:`tracks` (float32;
+        the task runs the tracker for it); else ``obs``."""
+        count = self.config.observation.tracks
+        if not count:
+            return obs
+        block = obs_lib.tracks_block(self.tracks, position, count, self.frame_rotation(position))
+        return np.concatenate([obs, block.astype(np.float32)])
 
     def _align(self, obs: np.ndarray, position: np.ndarray) -> np.ndarray:
         """``observation.history='aligned'``: re-read the older polygon blocks from ``position``."""
@@ -302,10 +348,12 @@ class NavCore:
                   accel: np.ndarray, truth: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """Jerk from a baseline planner (its action points are recorded as the robot position);
         ``truth``: the pedestrians' ground truth the planner declared (``positions``, ``velocities``,
-        ``radii``, ``goals``: :attr:`PlannerInput.pedestrian_positions` ...), nothing else."""
+        ``radii``, ``goals``: :attr:`PlannerInput.pedestrian_positions` ...), nothing else. The
+        planner gets :attr:`tracks` as :attr:`PlannerInput.tracks` (None while the tracker is off)."""
         crowd = {f"pedestrian_{key}": value for key, value in (truth or {}).items()}
         inp = PlannerInput(scan, self._angles, position.copy(), velocity.copy(), accel.copy(), self.goal.copy(),
-                           self.region, self.steps * self.config.timing.control_period, **crowd)
+                           self.region, self.steps * self.config.timing.control_period, **crowd,
+                           tracks=self.tracks)
         jerk = np.asarray(planner.act(inp), dtype=np.float64).reshape(2)
         if not np.all(np.isfinite(jerk)):
             raise ValueError(f"planner {type(planner).__name__} returned a non-finite jerk {jerk!r}")
@@ -349,6 +397,7 @@ class NavCore:
         self._plan = pending["plan"]
         self._prev = {"q_s": pending["q_s"], "q_l": pending["q_l"], "plan_ok": pending["plan_ok"],
                       "distance": distance, "velocity": velocity.copy()}
+        self._update_tracks(scan, position)
         t0 = time.perf_counter()
         self.region = self._region(scan)
         self.timers["region"] += time.perf_counter() - t0
@@ -358,6 +407,7 @@ class NavCore:
         if self._aligned is not None:
             self._aligned.push(self.region.boundary_xy, position)
             obs = self._align(obs, position)
+        obs = self._with_tracks(obs, position)
         self.timers["observation"] += time.perf_counter() - t0
         return obs, reward, terms
 
@@ -374,4 +424,4 @@ class NavCore:
     def observation_size(self) -> int:
         """Length of the stacked observation."""
         return obs_lib.observation_size(self.config.observation.frames, self.config.region.num_points,
-                                        self.design.state_size)
+                                        self.design.state_size, self.config.observation.tracks)

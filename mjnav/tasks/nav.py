@@ -18,7 +18,7 @@ from dm_control.composer.observation import observable
 from dm_env import specs
 
 from mjnav.geometry.raycast import beam_angles, cast_rays
-from mjnav.planners.base import declared_privileged
+from mjnav.planners.base import declared_privileged, declared_tracks
 from mjnav.sim import NavSim
 from mjnav.tasks.core import NavCore, Outcome
 from mjnav.tasks.privileged import CrowdTracker, critic_size, pedestrian_features
@@ -88,6 +88,7 @@ class CrowdNavTask(composer.Task):
         self.layout = self.sim.initialize_episode(physics, self.rng)
         p, v, _ = self.sim.robot_state(physics)
         scan = self._scan = self.sim.scan(physics, self.rng)
+        self.core.use_tracks(self.tracks_enabled)
         self._obs[:] = self.core.reset(self.layout.goal, p, v, scan)
         self._tracker.reset()
         self._observe_crowd(physics, p)
@@ -96,6 +97,24 @@ class CrowdNavTask(composer.Task):
         self._reward = 0.0
         self.terms = {}
         self.contact_kind = None
+
+    @property
+    def tracks_enabled(self) -> bool:
+        """Whether the LiDAR tracker runs this episode: ``tracks.enabled``, a planner declaring
+        ``uses_tracks`` or an observation holding tracks (``observation.tracks`` > 0); decided at
+        each episode start."""
+        return self.config.tracks.enabled or self.config.observation.tracks > 0 or declared_tracks(self.planner)
+
+    @property
+    def tracks(self) -> np.ndarray | None:
+        """(T, 5) ``[x, y, vx, vy, r]`` the tracker's confirmed moving pedestrians after the last scan,
+        world frame (metres, m/s), nearest first, read-only (:attr:`NavCore.tracks`); None when off.
+
+        Updated right after each scan (episode start and every step), so the planner of the next
+        step and the observation of this one see the same tracks. Made from the robot's noisy scan
+        and its position only: no simulator ground truth, no random draw.
+        """
+        return self.core.tracks
 
     def before_step(self, physics, action, random_state) -> None:
         """Turn the action into a jerk command for the coming control period."""
