@@ -16,8 +16,12 @@ rsl-rl's logger writes them unchanged (no ``Episode/`` prefix): ``episode/<metri
 per episode finished at this step, ``reward/<term>`` the per-step mean over all environments,
 ``mpc/<stat>`` one value per reporting environment, ``perf/env_step_ms`` the step's wall time,
 ``perf/own_block_ms`` the part of it this process spent stepping its own block (0 when it steps
-none) and ``perf/wait_ms`` the part it then waited for the worker processes; the rest of a step
-is the adapter's own bookkeeping.
+none), ``perf/wait_ms`` the part it then waited for the worker processes and
+``perf/transfer_ms`` the part spent moving actions into and observations, rewards and flags out
+of the shared buffers (with the tensors made of them); the rest of a step is the adapter's own
+bookkeeping (episode clock, logs). ``perf/worker_step_ms`` and ``perf/worker_step_max_ms`` are
+the mean and the longest time the worker processes took to step their blocks, timed inside them
+(0 without worker processes): ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency.
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
@@ -116,6 +120,7 @@ class NavVecEnv(VecEnv):
         self._shm: SharedMemory | None = None
         self._closed = False
         self._split = (0.0, 0.0)  # seconds of the last call: own block, wait for the worker processes
+        self._remote = 0  # worker processes (the first handles)
         try:
             self._start(env_fn, start_method, start_timeout_s, max_episode_length)
         except BaseException:
@@ -140,6 +145,7 @@ class NavVecEnv(VecEnv):
             ctx = _context(start_method)
             first = len(blocks) - len(remote)
             self._handles = [_WorkerHandle(ctx, env_fn, b, self.seed, first + k) for k, b in enumerate(remote)]
+            self._remote = len(self._handles)
         if local:  # last, so the worker processes get each command before this process steps
             self._handles.append(_LocalHandle(env_fn, blocks[0], self.seed))
         described = [h.result(timeout) for h in self._handles]
@@ -236,26 +242,40 @@ class NavVecEnv(VecEnv):
         self._write_actions(actions)
         lengths = self.episode_length_buf.cpu().numpy() + 1
         self._buf["force"][:] = lengths >= self.max_episode_length
+        sent = time.perf_counter()
         replies = self._call("step")
+        received = time.perf_counter()
         buf = self._buf
         rewards, outcome = buf["rewards"].copy(), buf["outcome"].copy()
         terminated, truncated = buf["terminated"].copy(), buf["truncated"].copy()
         done = terminated | truncated
         self._read_observations()
+        read = time.perf_counter()
         self._returns += rewards
         self._steps += 1
         log = self._log(done, outcome, replies)
         self._returns[done], self._steps[done] = 0.0, 0
         self.episode_length_buf = torch.from_numpy(np.where(done, 0, lengths)).to(self.device)
-        log["perf/env_step_ms"] = 1e3 * (time.perf_counter() - start)
-        log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
+        packed = time.perf_counter()
         extras = {
             "time_outs": torch.from_numpy(truncated).to(self.device),
             "outcomes": torch.from_numpy(outcome).to(self.device),
             "log": log,
         }
         dones = torch.from_numpy(done.astype(np.int64)).to(self.device)
-        return self.get_observations(), torch.from_numpy(rewards).to(self.device), dones, extras
+        result = self.get_observations(), torch.from_numpy(rewards).to(self.device), dones, extras
+        end = time.perf_counter()
+        self._log_times(log, replies, start, end, (sent - start) + (read - received) + (end - packed))
+        return result
+
+    def _log_times(self, log: dict[str, Any], replies: list[tuple], start: float, end: float, transfer: float) -> None:
+        """The ``perf/*`` entries of one step (module docstring), in milliseconds."""
+        busy = [reply[3] for reply in replies[: self._remote]]
+        log["perf/env_step_ms"] = 1e3 * (end - start)
+        log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
+        log["perf/transfer_ms"] = 1e3 * transfer
+        log["perf/worker_step_ms"] = 1e3 * sum(busy) / len(busy) if busy else 0.0
+        log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
 
     def _write_actions(self, actions: torch.Tensor) -> None:
         values = actions.detach().to("cpu", torch.float32).numpy()
@@ -279,7 +299,7 @@ class NavVecEnv(VecEnv):
             log["episode/length"] = torch.from_numpy(self._steps[done].astype(np.float32))
             log["episode/return"] = torch.from_numpy(self._returns[done].astype(np.float32))
         terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
-        for reply_terms, reply_sum, reply_count in replies:
+        for reply_terms, reply_sum, reply_count, _ in replies:
             terms.update(reply_terms)
             mpc_sum.update(reply_sum)
             mpc_count.update(reply_count)

@@ -12,6 +12,7 @@ import contextlib
 import multiprocessing as mp
 import os
 import signal
+import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -99,12 +100,14 @@ class _EnvGroup:
         self._seeded = True
         self.buf["outcome"][self.indices.start : self.indices.stop] = 0
 
-    def step(self) -> tuple[Counter, Counter, Counter]:
+    def step(self) -> tuple[Counter, Counter, Counter, float]:
         """Step every environment with the shared actions; auto-reset finished ones.
 
         Returns:
-            Sums over this group of the reward terms, sums and counts of the MPC statistics.
+            Sums over this group of the reward terms, sums and counts of the MPC statistics, and
+            the seconds this call took (the group's busy time, measured where it runs).
         """
+        start = time.perf_counter()
         terms: dict[str, float] = {}
         mpc_sum: dict[str, float] = {}
         mpc_count: dict[str, int] = {}
@@ -130,7 +133,7 @@ class _EnvGroup:
             except Exception as exc:
                 _blame(exc, i)
                 raise
-        return Counter(terms), Counter(mpc_sum), Counter(mpc_count)
+        return Counter(terms), Counter(mpc_sum), Counter(mpc_count), time.perf_counter() - start
 
     def close(self) -> None:
         """Close every environment."""
