@@ -56,6 +56,30 @@ from mjnav.envs.workers import (
 
 __all__ = ["OUTCOMES", "EnvError", "NavVecEnv"]
 
+def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range]:
+    """Contiguous blocks of environment indices, one per worker (one block for ``workers`` <= 1).
+
+    Args:
+        num_envs: Number of environments N.
+        workers: Workers W.
+        first: Size of the first block with W >= 2 (the others share the rest evenly); None:
+            even blocks. Ignored with fewer than 2 workers (one block).
+
+    Raises:
+        ValueError: ``first`` leaves a block empty (it must be in [1, N - W + 1]).
+    """
+    count = max(1, workers)
+    if first is None or count == 1:
+        sizes = [len(b) for b in np.array_split(np.arange(num_envs), count)]
+    elif 1 <= first <= num_envs - count + 1:
+        sizes = [first, *(len(b) for b in np.array_split(np.arange(num_envs - first), count - 1))]
+    else:
+        raise ValueError(f"main_envs must be in [1, {num_envs - count + 1}] with {num_envs} environments "
+                         f"on {workers} workers, got {first}")
+    ends = np.cumsum(sizes)
+    return [range(int(end - size), int(end)) for size, end in zip(sizes, ends, strict=True)]
+
+
 class NavVecEnv(VecEnv):
     """``num_envs`` gymnasium environments behind rsl-rl's :class:`~rsl_rl.env.VecEnv` interface.
 
@@ -71,6 +95,7 @@ class NavVecEnv(VecEnv):
         cfg: Dictionary stored by rsl-rl's logger (task config and adapter settings).
         workers: Workers stepping environments in parallel, this process included when
             ``step_in_main`` (0: all in this process).
+        blocks: The environment indices of each worker, this process's first when ``step_in_main``.
     """
 
     def __init__(
@@ -86,6 +111,7 @@ class NavVecEnv(VecEnv):
         start_timeout_s: float = 600.0,
         cfg: dict | None = None,
         step_in_main: bool = True,
+        main_envs: int | None = None,
     ) -> None:
         """Start the workers, build and reset the environments.
 
@@ -103,6 +129,10 @@ class NavVecEnv(VecEnv):
             cfg: Extra configuration to expose as ``self.cfg``.
             step_in_main: This process is worker 0 (W - 1 worker processes); False: W worker
                 processes and this process only waits.
+            main_envs: With ``step_in_main`` and W >= 2: the environments this process steps
+                itself (the first block; the worker processes share the rest evenly). None: an even
+                share; ignored with W < 2. Fewer leave it time for its own per-step work (the policy, the adapter's
+                bookkeeping) while the worker processes step; rollouts do not depend on it.
 
         Raises:
             EnvError: A worker failed to start or to build an environment (with its traceback).
@@ -115,6 +145,9 @@ class NavVecEnv(VecEnv):
             raise ValueError(f"workers must be in [0, num_envs={num_envs}], got {self.workers}")
         self.num_envs, self.seed, self.device = num_envs, seed, torch.device(device)
         self.step_in_main = step_in_main
+        if main_envs is not None and not step_in_main:
+            raise ValueError("main_envs needs step_in_main=True (this process steps the first block)")
+        self.blocks = _blocks(num_envs, self.workers, main_envs)
         self.step_timeout_s = step_timeout_s
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
@@ -135,10 +168,7 @@ class NavVecEnv(VecEnv):
         }
 
     def _start(self, env_fn: EnvFn, start_method: str, timeout: float, limit: int | None) -> None:
-        blocks = [
-            range(int(b[0]), int(b[-1]) + 1)
-            for b in np.array_split(np.arange(self.num_envs), max(1, self.workers))
-        ]
+        blocks = self.blocks
         local = self.workers == 0 or self.step_in_main
         remote = blocks[1:] if local else blocks
         if remote:
