@@ -41,13 +41,13 @@ from typing import Any
 import numpy as np
 
 from mjnav.args import Grammar, Parsed
-from mjnav.bench.throughput import SingleEnv
+from mjnav.bench.throughput import SingleEnv, parse_workers
 from mjnav.config import TASK_SECTIONS, load_task
 from mjnav.envs.workers import usable_cores
 from mjnav.schema import ConfigError
 from mjnav.train.config import TrainConfig, load_train
 
-__all__ = ["STEP_PARTS", "CollectBench", "CollectOptions", "grammar", "parse_workers", "run"]
+__all__ = ["STEP_PARTS", "CollectBench", "CollectOptions", "grammar", "run"]
 
 #: Parts of one rollout step, ms (all environments), in the order of the loop.
 STEP_PARTS: tuple[str, ...] = ("policy", "own block", "wait", "transfer", "adapter", "storage", "logger", "rest")
@@ -74,23 +74,6 @@ class CollectOptions:
 def grammar() -> Grammar:
     """:class:`CollectOptions`, ``task.*`` and ``train.*`` overrides."""
     return Grammar(CollectOptions, ("task", "train"), {}, TASK_SECTIONS)
-
-
-def parse_workers(text: str, num_envs: int) -> list[int]:
-    """Worker counts of ``workers=`` (``cores``: the usable cores), each in [1, num_envs], in order.
-
-    Raises:
-        ConfigError: Not a comma-separated list of counts in range.
-    """
-    counts = []
-    for item in str(text).split(","):
-        item = item.strip()
-        count = min(num_envs, usable_cores()) if item == "cores" else int(item) if item.isdigit() else None
-        if count is None or not 1 <= count <= num_envs:
-            raise ConfigError(f"workers: expected comma-separated counts in [1, num_envs={num_envs}] or 'cores', "
-                              f"got {text!r}")
-        counts.append(count)
-    return list(dict.fromkeys(counts))
 
 
 class CollectBench:
