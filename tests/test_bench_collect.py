@@ -31,14 +31,17 @@ def test_step_parts_add_up_to_the_collection_time(tmp_path) -> None:
 
 
 def test_cli_prints_rates_ratios_and_parts(capsys: pytest.CaptureFixture) -> None:
-    argv = ["bench", "collect", "task=stage1", "workers=1,2", "rounds=1", "single_steps=5",
+    argv = ["bench", "collect", "task=stage1", "workers=1,2", "main_envs=-1,1", "rounds=1", "single_steps=5",
             *(f"train.{t}" for t in TINY)]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert "| 1 | " in out and "| 2 | " in out and "x one environment" in out
-    assert "| 2 worker(s) | " in out and "PPO update" in out
+    assert out.count("| 1 | ") == 3 and out.count("| 2 | ") == 3 and out.count("| 2, main 1 | ") == 3
+    assert "x one environment" in out and "PPO update" in out
 
 
-def test_bad_worker_list_is_one_error_line(capsys: pytest.CaptureFixture) -> None:
-    assert main(["bench", "collect", "workers=1,0"]) == 2
-    assert "workers" in capsys.readouterr().err
+@pytest.mark.parametrize(("arg", "key"), [("workers=1,0", "workers"), ("main_envs=x", "main_envs"),
+                                          ("main_envs=64", "main_envs")])
+def test_bad_list_is_one_error_line(capsys: pytest.CaptureFixture, arg: str, key: str) -> None:
+    assert main(["bench", "collect", arg]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and key in err

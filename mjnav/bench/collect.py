@@ -1,10 +1,10 @@
 """``mjnav bench collect``: PPO collection steps/s for 1, 2, ... workers, with where each step goes.
 
-    mjnav bench collect task=stage7 [workers=1,2] [rounds=3] [train.steps_per_env=64] [train.device=cuda]
+    mjnav bench collect task=stage7 [workers=1,2] [main_envs=-1,30] [rounds=3] [train.steps_per_env=64] [train.device=cuda]
 
 Builds one training runner (:func:`mjnav.train.runner.build_runner`, the adapter of
-``train.num_envs`` environments, rsl-rl's PPO) per worker count in ``workers`` and one
-environment alone, then times them in ``rounds`` interleaved rounds (each round: one PPO
+``train.num_envs`` environments, rsl-rl's PPO) per worker count in ``workers`` (and, with 2 or
+more workers, per trainer share in ``main_envs``: ``train.main_envs``) and one environment alone, then times them in ``rounds`` interleaved rounds (each round: one PPO
 iteration of every runner, ``single_steps`` random-action steps of the single environment, in
 alternating order; :mod:`mjnav.timing`). Prints, with medians over rounds:
 
@@ -61,12 +61,15 @@ class CollectOptions:
         task: Bundled stage name or task YAML path.
         workers: Worker counts to compare, comma-separated (``1,2,4,8,15``; ``cores``: one per
             usable core). Each is ``train.workers``: this process steps the first block.
+        main_envs: Trainer shares to compare with 2 or more workers, comma-separated
+            (``train.main_envs``: the environments the trainer steps itself; -1: an even share).
         rounds: Interleaved timing rounds (one PPO iteration of every configuration per round).
         single_steps: Random-action steps of the single environment per round.
     """
 
     task: str = "stage7"
     workers: str = "1,2"
+    main_envs: str = "-1"
     rounds: int = 3
     single_steps: int = 400
 
@@ -171,25 +174,44 @@ def run(parsed: Parsed, argv: list[str]) -> int:
             raise ConfigError(f"rounds and single_steps must be >= 1, got {opts.rounds} and {opts.single_steps}")
         config = load_task(opts.task, list(parsed.task))
         train = load_train(list(parsed.train))
-        counts = parse_workers(opts.workers, train.num_envs)
+        configs = _configs(parse_workers(opts.workers, train.num_envs), opts.main_envs, train)
     except (ConfigError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    bench(config, train, counts, opts)
+    bench(config, configs, opts)
     return 0
 
 
-def bench(config, train: TrainConfig, counts: list[int], opts: CollectOptions) -> None:
+def _configs(counts: list[int], shares: str, train: TrainConfig) -> dict[str, TrainConfig]:
+    """Training configs by row label: each worker count, with each trainer share when it has >= 2 workers.
+
+    Raises:
+        ConfigError: ``shares`` is not a list of -1 or counts in [1, num_envs).
+    """
+    try:
+        values = [int(v) for v in str(shares).split(",")]
+    except ValueError:
+        raise ConfigError(f"main_envs: expected comma-separated integers, got {shares!r}") from None
+    configs = {}
+    for w in counts:
+        for m in values if w >= 2 else [-1]:
+            label = f"{w}" if m < 0 else f"{w}, main {m}"
+            configs[label] = load_train([f"workers={w}", f"main_envs={m}"], base=train)
+    return configs
+
+
+def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None:
     """Build every configuration, time them in interleaved rounds and print markdown tables."""
+    train = next(iter(configs.values()))
     single = SingleEnv(config, opts.single_steps, train.seed)
-    benches: dict[int, CollectBench] = {}
+    benches: dict[str, CollectBench] = {}
     rates: dict[str, list[float]] = {"single": []}
-    collection: dict[int, list[float]] = {w: [] for w in counts}
+    collection: dict[str, list[float]] = {label: [] for label in configs}
     try:
         with tempfile.TemporaryDirectory(prefix="mjnav-bench-collect-") as tmp:
-            for w in counts:
-                benches[w] = CollectBench(config, dataclasses.replace(train, workers=w), f"{tmp}/w{w}")
-            names: list[Any] = ["single", *counts]
+            for k, (label, cfg) in enumerate(configs.items()):
+                benches[label] = CollectBench(config, cfg, f"{tmp}/{k}")
+            names: list[Any] = ["single", *configs]
             for r in range(opts.rounds):
                 for name in names if r % 2 == 0 else names[::-1]:
                     if name == "single":
@@ -206,8 +228,8 @@ def bench(config, train: TrainConfig, counts: list[int], opts: CollectOptions) -
     _print(config, train, opts, np.array(rates["single"]), {w: np.array(v) for w, v in collection.items()}, benches)
 
 
-def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray, collection: dict[int, np.ndarray],
-           benches: dict[int, CollectBench]) -> None:
+def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray, collection: dict[str, np.ndarray],
+           benches: dict[str, CollectBench]) -> None:
     print(f"## {config.name}: {config.crowd.count} pedestrians; {train.num_envs} environments x "
           f"{train.steps_per_env} steps per iteration, {train.epochs} epochs x {train.minibatches} minibatches, "
           f"device {train.device}; medians of {opts.rounds} interleaved rounds (min-max)\n")
@@ -218,8 +240,8 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
     counts = list(collection)
     first = np.median(collection[counts[0]])
     env_rates = {w: b.train.num_envs * b.seconds["steps"] / max(b.seconds["env.step"], 1e-9) for w, b in benches.items()}
-    print(f"| workers | collection, env steps/s | x {counts[0]} worker(s) | env.step alone, env steps/s | "
-          f"x {counts[0]} worker(s) | x one environment | iteration incl. update, env steps/s |")
+    print(f"| workers | collection, env steps/s | x {counts[0]} | env.step alone, env steps/s | "
+          f"x {counts[0]} | x one environment | iteration incl. update, env steps/s |")
     print("|---|---|---|---|---|---|---|")
     for w, values in collection.items():
         b = benches[w]
@@ -237,9 +259,9 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
         n = max(s["steps"], 1)
         busy = f"{1e3 * s['worker_step'] / n / total:.0%}" if s["worker_step"] else "-"
         cells = " | ".join(f"{parts[p]:.2f} ({parts[p] / total:.0%})" for p in STEP_PARTS)
-        print(f"| {w} worker(s) | {cells} | {1e3 * s['worker_step'] / n:.2f} / "
+        print(f"| {w} | {cells} | {1e3 * s['worker_step'] / n:.2f} / "
               f"{1e3 * s['worker_step_max'] / n:.2f} | {busy} |")
     print("\n| per iteration, s | collection | returns | PPO update |\n|---|---|---|---|")
     for w, b in benches.items():
         s, it = b.seconds, max(b.iterations, 1)
-        print(f"| {w} worker(s) | {s['collection'] / it:.2f} | {s['returns'] / it:.3f} | {s['update'] / it:.2f} |")
+        print(f"| {w} | {s['collection'] / it:.2f} | {s['returns'] / it:.3f} | {s['update'] / it:.2f} |")
