@@ -58,3 +58,13 @@ def test_adapter_split_adds_up_to_the_measured_time() -> None:
     assert split["own block"] > 0.0 and split["adapter bookkeeping"] > 0.0
     assert split["wait for worker processes"] < 0.1 * split["own block"]  # no worker processes here
     assert np.isclose(sum(split.values()), vec.sums["total"] / 10)
+
+
+def test_envs_in_turn_step_every_environment() -> None:
+    """The no-adapter reference steps each of its environments once per block step."""
+    in_turn = _script().EnvsInTurn(load_task("stage1"), num_envs=3, steps=2, seed=0)
+    try:
+        assert in_turn.block() == 6
+        assert len(in_turn.envs) == 3
+    finally:
+        in_turn.close()

@@ -8,6 +8,8 @@ Prints, all from one run:
     Gymnasium environment's task steps (``NavEnvironment.step_task``, what the adapter runs):
     steps/s and µs per part (physics = substeps incl. pedestrians and tracking force, lidar,
     region, action mapping, MPC, reward, observation, rest = composer and wrapper overhead);
+  * ``num_envs`` such environments stepped in turn in this process without the adapter (what
+    the working set of many environments costs by itself);
   * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments (default: the training
     default, ``train.num_envs``) with each count of ``workers`` (default 1, 2 and all usable cores;
     ``workers=1,2,4,8,15`` on a 16-core machine; this process stepping the first block), and as
@@ -42,7 +44,7 @@ from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
 from mjnav.train.config import TrainConfig
 
-__all__ = ["SingleEnv", "ThroughputOptions", "VecBench", "adapter_rows", "bare_physics", "grammar", "parse_workers",
+__all__ = ["EnvsInTurn", "SingleEnv", "ThroughputOptions", "VecBench", "adapter_rows", "bare_physics", "grammar", "parse_workers",
            "run"]
 
 
@@ -149,6 +151,31 @@ class SingleEnv:
         return parts
 
 
+class EnvsInTurn:
+    """``num_envs`` Gymnasium environments (task steps) stepped in turn in this process, no adapter."""
+
+    def __init__(self, config, num_envs: int, steps: int, seed: int) -> None:
+        self.envs = [NavGymEnv(config) for _ in range(num_envs)]
+        for i, env in enumerate(self.envs):
+            env.reset(seed=seed + i)
+        self.steps, self.rng = steps, np.random.default_rng(seed)
+        self.block()  # warm-up
+
+    def block(self) -> int:
+        """``steps`` random-action steps of every environment (finished episodes are reset)."""
+        for _ in range(self.steps):
+            for env, action in zip(self.envs, self.rng.normal(size=(len(self.envs), 4)).astype(np.float32), strict=True):
+                _, _, term, trunc, _ = env.step(action)
+                if term or trunc:
+                    env.reset()
+        return self.steps * len(self.envs)
+
+    def close(self) -> None:
+        """Close every environment."""
+        for env in self.envs:
+            env.close()
+
+
 class VecBench:
     """The rsl-rl adapter with random actions; accumulates where its steps' time goes."""
 
@@ -233,6 +260,9 @@ def bench(config, opts: ThroughputOptions) -> None:
     closers = [single.env.close for single in singles.values()]
     vecs: dict[str, VecBench] = {}
     try:
+        in_turn = EnvsInTurn(config, num_envs, opts.vec_steps, seed)
+        blocks["in turn"] = in_turn.block
+        closers.append(in_turn.close)
         for label, workers, in_main in adapter_rows(parse_workers(opts.workers, num_envs)):
             vecs[label] = VecBench(config, num_envs, workers, opts.vec_steps, seed, in_main)
             blocks[label] = vecs[label].block
@@ -255,6 +285,7 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     bare = rates.pop("bare")
     periods = np.median(bare) / substeps  # control periods/s of bare physics
     singles = {name: rates.pop(f"single {name}") for name in parts}
+    in_turn = rates.pop("in turn")
 
     def spread(values: np.ndarray) -> str:
         return f"{np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f})"
@@ -269,6 +300,9 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     for name, values in singles.items():
         print(f"| {_SINGLE_LABELS[name]} | {spread(values)} | {1e6 / np.median(values):.0f} | "
               f"{np.median(values) / periods:.3f} |")
+    print(f"| {num_envs} such environments in turn, this process, no adapter "
+          f"(x {np.median(in_turn) / np.median(singles['task']):.2f} one environment) | {spread(in_turn)} | "
+          f"{1e6 / np.median(in_turn):.0f} | {np.median(in_turn) / periods:.3f} |")
     names = list(parts)
     print("\n| part (us/step) | " + " | ".join(_SINGLE_LABELS[n] for n in names) + " |")
     print("|---|" + "---|" * len(names))
