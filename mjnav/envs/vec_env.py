@@ -18,7 +18,7 @@ per episode finished at this step, ``reward/<term>`` the per-step mean over all 
 ``perf/own_block_ms`` the part of it this process spent stepping its own block (0 when it steps
 none), ``perf/wait_ms`` the part it then waited for the worker processes and
 ``perf/transfer_ms`` the part spent moving actions into and observations, rewards and flags out
-of the shared buffers (with the tensors made of them); the rest of a step is the adapter's own
+of the shared buffers (with the tensors made of them) and sending the step command down the pipes; the rest of a step is the adapter's own
 bookkeeping (episode clock, logs). ``perf/worker_step_ms`` and ``perf/worker_step_max_ms`` are
 the mean and the longest time the worker processes took to step their blocks, timed inside them
 (0 without worker processes): ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency.
@@ -152,7 +152,7 @@ class NavVecEnv(VecEnv):
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
         self._closed = False
-        self._split = (0.0, 0.0)  # seconds of the last call: own block, wait for the worker processes
+        self._split = (0.0, 0.0, 0.0)  # seconds of the last call: own block, wait, sending the command
         self._remote = 0  # worker processes (the first handles)
         try:
             self._start(env_fn, start_method, start_timeout_s, max_episode_length)
@@ -215,10 +215,12 @@ class NavVecEnv(VecEnv):
         """Send ``command`` to every worker, then collect the replies; close everything on failure.
 
         Notes in ``_split`` the seconds this process spent on its own block (the last handle, when
-        local; 0 otherwise) and the seconds it then waited for the replies.
+        local; 0 otherwise), the seconds it then waited for the replies and the seconds it took to
+        send the command to the worker processes.
         """
         try:
             *others, last = self._handles
+            begin = time.perf_counter()
             for handle in others:
                 handle.request(command, arg)
             start = time.perf_counter()
@@ -226,7 +228,7 @@ class NavVecEnv(VecEnv):
             ready = time.perf_counter()
             replies = [handle.result(self.step_timeout_s) for handle in self._handles]
             own = ready - start if isinstance(last, _LocalHandle) else 0.0
-            self._split = (own, time.perf_counter() - ready)
+            self._split = (own, time.perf_counter() - ready, start - begin)
             return replies
         except BaseException:
             self.close()
@@ -303,7 +305,7 @@ class NavVecEnv(VecEnv):
         busy = [reply[3] for reply in replies[: self._remote]]
         log["perf/env_step_ms"] = 1e3 * (end - start)
         log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
-        log["perf/transfer_ms"] = 1e3 * transfer
+        log["perf/transfer_ms"] = 1e3 * (transfer + self._split[2])
         log["perf/worker_step_ms"] = 1e3 * sum(busy) / len(busy) if busy else 0.0
         log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
 
