@@ -59,8 +59,8 @@ class CollectOptions:
 
     Attributes:
         task: Bundled stage name or task YAML path.
-        workers: Worker counts to compare, comma-separated (``1,2,4,8,15``; ``cores``: one per
-            usable core). Each is ``train.workers``: this process steps the first block.
+        workers: Worker counts to compare (``train.workers``, the trainer stepping the first block),
+            comma-separated, as in 1,2,4,8,15; cores is one per usable core.
         main_envs: Trainer shares to compare with 2 or more workers, comma-separated
             (``train.main_envs``: the environments the trainer steps itself; -1: an even share).
         rounds: Interleaved timing rounds (one PPO iteration of every configuration per round).

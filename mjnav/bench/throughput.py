@@ -58,7 +58,7 @@ class ThroughputOptions:
         steps: Control steps per single-environment block.
         vec_steps: Adapter steps (of all environments) per adapter block.
         num_envs: Environments of the adapter (default: the training default ``train.num_envs``).
-        workers: Adapter worker counts, comma-separated (``cores``: one per usable core).
+        workers: Adapter worker counts, comma-separated, as in 1,2,4,8,15; cores is one per usable core.
         seed: Environment seed.
     """
 
