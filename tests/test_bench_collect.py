@@ -28,6 +28,9 @@ def test_step_parts_add_up_to_the_collection_time(tmp_path) -> None:
     assert np.isclose(sum(parts.values()), 1e3 * bench.seconds["collection"] / 4)
     assert parts["policy"] > 0 and parts["own block"] > 0 and bench.seconds["worker_step"] > 0
     assert bench.seconds["update"] > 0
+    trainer, worker, rate = bench.cpu_estimate()
+    assert 0 < trainer <= 1e3 * bench.seconds["collection"] / 4 * 1.5 and worker > 0
+    assert np.isclose(rate, 1e3 * 4 / max(trainer, worker))
 
 
 def test_cli_prints_rates_ratios_and_parts(capsys: pytest.CaptureFixture) -> None:
@@ -35,8 +38,8 @@ def test_cli_prints_rates_ratios_and_parts(capsys: pytest.CaptureFixture) -> Non
             *(f"train.{t}" for t in TINY)]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert out.count("| 1 | ") == 3 and out.count("| 2 | ") == 3 and out.count("| 2, main 1 | ") == 3
-    assert "x one environment" in out and "PPO update" in out
+    assert out.count("| 1 | ") == 4 and out.count("| 2 | ") == 4 and out.count("| 2, main 1 | ") == 4  # four tables
+    assert "x one environment" in out and "PPO update" in out and "estimate on cores of their own" in out
 
 
 @pytest.mark.parametrize(("arg", "key"), [("workers=1,0", "workers"), ("main_envs=x", "main_envs"),

@@ -17,7 +17,12 @@ alternating order; :mod:`mjnav.timing`). Prints, with medians over rounds:
   PPO storage (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed
   inside the worker processes, their mean and longest step and the share of the step they are
   busy (the rest they wait for the trainer);
-* per iteration: the returns (GAE) and the PPO update, seconds.
+* per iteration: the returns (GAE) and the PPO update, seconds;
+* a CPU-time estimate for a machine of its own: the trainer process's CPU time in the rollout
+  loop and the slowest worker process's CPU time per step (which leave out waiting for a core
+  on a shared machine), and ``num_envs`` over the larger of the two as env steps/s. It ignores
+  the step-by-step wait for the slower side and the hand-off latency, so it is an upper bound;
+  its ratios are what a loaded machine can still tell.
 
 On a shared machine the rates drift; compare the shares and ratios of one run. ``workers`` takes
 any list (``workers=1,2,4,8,15`` on a 16-core machine); ``train.device=cuda`` runs the policy
@@ -97,12 +102,29 @@ class CollectBench:
         self.env = env
         self.seconds: Counter = Counter()  # phase -> seconds over the timed iterations
         self.iterations = 0
+        self._rollout_cpu: float | None = None  # process CPU time at the first act() of the rollout
         self._instrument()
         self.block()  # warm-up: the first iteration's allocations, numba dispatch, solver caches
         self.seconds, self.iterations = Counter(), 0
 
     def _instrument(self) -> None:
         runner = self.runner
+        act, returns = runner.alg.act, runner.alg.compute_returns
+
+        @functools.wraps(act)
+        def act_from_rollout_start(*args: Any, **kwargs: Any) -> Any:
+            if self._rollout_cpu is None:
+                self._rollout_cpu = time.process_time()
+            return act(*args, **kwargs)
+
+        @functools.wraps(returns)
+        def returns_after_rollout(*args: Any, **kwargs: Any) -> Any:
+            if self._rollout_cpu is not None:
+                self.seconds["trainer cpu"] += time.process_time() - self._rollout_cpu
+                self._rollout_cpu = None
+            return returns(*args, **kwargs)
+
+        runner.alg.act, runner.alg.compute_returns = act_from_rollout_start, returns_after_rollout
         self._timed(runner.alg, "act", "policy")
         self._timed(runner.alg, "process_env_step", "storage")
         self._timed(runner.logger, "process_env_step", "logger")
@@ -116,7 +138,7 @@ class CollectBench:
             result = step(*args, **kwargs)
             seconds, perf = self.seconds, result[3]["log"]
             seconds["env.step"] += time.perf_counter() - start
-            for key in ("own_block", "wait", "transfer", "env_step", "worker_step", "worker_step_max"):
+            for key in ("own_block", "wait", "transfer", "env_step", "worker_step", "worker_step_max", "worker_cpu_max"):
                 seconds[key] += perf[f"perf/{key}_ms"] / 1e3
             seconds["steps"] += 1
             return result
@@ -160,6 +182,14 @@ class CollectBench:
                  "storage": s["storage"], "logger": s["logger"]}
         parts["rest"] = s["collection"] - sum(parts.values())
         return {k: 1e3 * v / n for k, v in parts.items()}
+
+    def cpu_estimate(self) -> tuple[float, float, float]:
+        """Trainer CPU ms and slowest worker process's CPU ms per rollout step, and the env
+        steps/s they allow on cores of their own (``num_envs`` over the larger; an upper bound)."""
+        s = self.seconds
+        n = max(s["steps"], 1)
+        trainer, worker = 1e3 * s["trainer cpu"] / n, 1e3 * s["worker_cpu_max"] / n
+        return trainer, worker, 1e3 * self.train.num_envs / max(trainer, worker, 1e-9)
 
     def close(self) -> None:
         """Stop the adapter's workers."""
@@ -261,6 +291,12 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
         cells = " | ".join(f"{parts[p]:.2f} ({parts[p] / total:.0%})" for p in STEP_PARTS)
         print(f"| {w} | {cells} | {1e3 * s['worker_step'] / n:.2f} / "
               f"{1e3 * s['worker_step_max'] / n:.2f} | {busy} |")
+    estimates = {w: b.cpu_estimate() for w, b in benches.items()}
+    base = estimates[counts[0]][2]
+    print("\n| CPU time per rollout step, ms | trainer process | slowest worker process | "
+          f"estimate on cores of their own, env steps/s | x {counts[0]} |\n|---|---|---|---|---|")
+    for w, (trainer, worker, rate) in estimates.items():
+        print(f"| {w} | {trainer:.2f} | {worker:.2f} | {rate:,.0f} | {rate / base:.2f} |")
     print("\n| per iteration, s | collection | returns | PPO update |\n|---|---|---|---|")
     for w, b in benches.items():
         s, it = b.seconds, max(b.iterations, 1)

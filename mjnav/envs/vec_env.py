@@ -21,7 +21,9 @@ none), ``perf/wait_ms`` the part it then waited for the worker processes and
 of the shared buffers (with the tensors made of them) and sending the step command down the pipes; the rest of a step is the adapter's own
 bookkeeping (episode clock, logs). ``perf/worker_step_ms`` and ``perf/worker_step_max_ms`` are
 the mean and the longest time the worker processes took to step their blocks, timed inside them
-(0 without worker processes): ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency.
+(0 without worker processes): ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency;
+``perf/worker_cpu_max_ms`` is the largest CPU time among them (without the time spent waiting for
+a core on a shared machine).
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
@@ -308,6 +310,7 @@ class NavVecEnv(VecEnv):
         log["perf/transfer_ms"] = 1e3 * (transfer + self._split[2])
         log["perf/worker_step_ms"] = 1e3 * sum(busy) / len(busy) if busy else 0.0
         log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
+        log["perf/worker_cpu_max_ms"] = 1e3 * max((reply[4] for reply in replies[: self._remote]), default=0.0)
 
     def _write_actions(self, actions: torch.Tensor) -> None:
         values = actions.detach().to("cpu", torch.float32).numpy()
@@ -331,7 +334,7 @@ class NavVecEnv(VecEnv):
             log["episode/length"] = torch.from_numpy(self._steps[done].astype(np.float32))
             log["episode/return"] = torch.from_numpy(self._returns[done].astype(np.float32))
         terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
-        for reply_terms, reply_sum, reply_count, _ in replies:
+        for reply_terms, reply_sum, reply_count, *_ in replies:
             terms.update(reply_terms)
             mpc_sum.update(reply_sum)
             mpc_count.update(reply_count)
