@@ -89,6 +89,8 @@ VERBS: dict[str, Verb] = {
     "bench": Verb("bench", "Speed benchmarks.", subverbs={
         "throughput": _verb("bench throughput", "Environment and adapter steps/s with a per-part breakdown.",
                             "mjnav.bench.throughput"),
+        "collect": _verb("bench collect", "PPO collection steps/s for 1, 2, ... workers, with where each step goes.",
+                         "mjnav.bench.collect"),
         "crowd": _verb("bench crowd", "Pedestrian models' cost per control step and ORCA's contacts.",
                        "mjnav.bench.crowd"),
         "tracker": _verb("bench tracker", "LiDAR pedestrian tracker vs ground truth per stage.", "mjnav.bench.tracker"),

@@ -12,6 +12,7 @@ import contextlib
 import multiprocessing as mp
 import os
 import signal
+import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -101,12 +102,15 @@ class _EnvGroup:
         self._seeded = True
         self.buf["outcome"][self.indices.start : self.indices.stop] = 0
 
-    def step(self) -> tuple[Counter, Counter, Counter]:
+    def step(self) -> tuple[Counter, Counter, Counter, float, float]:
         """Step every environment with the shared actions; auto-reset finished ones.
 
         Returns:
-            Sums over this group of the reward terms, sums and counts of the MPC statistics.
+            Sums over this group of the reward terms, sums and counts of the MPC statistics, and
+            the wall-clock and CPU seconds of this call (measured where it runs; the CPU time
+            leaves out the time the process waited for a core on a shared machine).
         """
+        start, cpu = time.perf_counter(), time.thread_time()
         terms: dict[str, float] = {}
         mpc_sum: dict[str, float] = {}
         mpc_count: dict[str, int] = {}
@@ -132,7 +136,7 @@ class _EnvGroup:
             except Exception as exc:
                 _blame(exc, i)
                 raise
-        return Counter(terms), Counter(mpc_sum), Counter(mpc_count)
+        return Counter(terms), Counter(mpc_sum), Counter(mpc_count), time.perf_counter() - start, time.thread_time() - cpu
 
     def close(self) -> None:
         """Close every environment."""

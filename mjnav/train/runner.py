@@ -118,6 +118,7 @@ def make_vec_env(
         device=train.device,
         max_episode_length=task.timing.episode_steps,
         start_method=train.start_method,
+        main_envs=train.main_envs if train.main_envs >= 0 else None,
         cfg={"task": task.name},
     )
 
