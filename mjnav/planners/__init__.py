@@ -2,7 +2,7 @@
 
 ``mpc_goal`` (convex region + MPC towards the goal), ``mpc_gap`` (the same towards open space near
 the goal direction), ``mpc_crowd`` (the same steered by the pedestrians' true motion: privileged, an
-oracle), ``teb`` (timed elastic band), ``dwa`` (dynamic window) and ``random_jerk``
+oracle), ``mpc_tracked`` (the same steered by the robot's own LiDAR tracks), ``teb`` (timed elastic band), ``dwa`` (dynamic window) and ``random_jerk``
 (:class:`RandomPlanner`). Set ``env.task.planner`` to one and the task uses it instead of the
 learned action layer; the episode and its scoring stay the same. Pure numpy/scipy; every planner
 brakes (and counts it in ``stats``) instead of raising.
@@ -28,7 +28,8 @@ from pathlib import Path
 from mjnav.planners.base import Planner, PlannerInput
 from mjnav.planners.dwa import DwaConfig, DwaPlanner
 from mjnav.planners.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
-from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
+from mjnav.planners.mpc_tracked import MpcTrackedConfig, MpcTrackedPlanner
+from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalConfig, MpcGoalPlanner
 from mjnav.planners.random import RandomActionPolicy, RandomPlanner
 from mjnav.planners.resolve import PlannerError, PlannerSource, is_spec, resolve
 from mjnav.planners.teb import TebConfig, TebPlanner
@@ -42,7 +43,10 @@ __all__ = [
     "MpcCrowdPlanner",
     "MpcGapConfig",
     "MpcGapPlanner",
+    "MpcGoalConfig",
     "MpcGoalPlanner",
+    "MpcTrackedConfig",
+    "MpcTrackedPlanner",
     "Planner",
     "PlannerError",
     "PlannerInput",
@@ -59,9 +63,10 @@ __all__ = [
 
 #: Planners by policy name; a factory takes its config class's instance (or nothing, without one).
 PLANNERS: Registry[Planner] = Registry("planner", "mjnav.planners")
-PLANNERS.register("mpc_goal", MpcGoalPlanner, source="builtin")
+PLANNERS.register("mpc_goal", MpcGoalPlanner, config=MpcGoalConfig, source="builtin")
 PLANNERS.register("mpc_gap", MpcGapPlanner, config=MpcGapConfig, source="builtin")
 PLANNERS.register("mpc_crowd", MpcCrowdPlanner, config=MpcCrowdConfig, source="builtin")
+PLANNERS.register("mpc_tracked", MpcTrackedPlanner, config=MpcTrackedConfig, source="builtin")
 PLANNERS.register("teb", TebPlanner, config=TebConfig, source="builtin")
 PLANNERS.register("dwa", DwaPlanner, config=DwaConfig, source="builtin")
 PLANNERS.register("random_jerk", RandomPlanner, source="builtin")

@@ -20,7 +20,10 @@ Every control step:
    (:func:`mjnav.control.dynamics.track_velocity`, gain ``k_v``). With none admissible the robot
    brakes (counted in ``stats["no_admissible"]``).
 
-Obstacles are treated as static (the scan of this step). Parameters (:class:`DwaConfig`):
+Obstacles are treated as static (the scan of this step). With ``tracks`` (``planner.tracks=true``)
+the LiDAR tracks (:attr:`mjnav.planners.base.PlannerInput.tracks`, not privileged) are obstacles
+as well: each tracked pedestrian's disc at constant velocity, at the time of each rollout point,
+counts in that point's clearance (:mod:`mjnav.planners.tracks`). Parameters (:class:`DwaConfig`):
 samples 11, a_window 4 m/s², horizon 1.5 s, rollout_dt 0.1 s, a_brake 2.5 m/s², weights
 1.0 / 1.6 / 0.1, clearance_cap 1.0 m, k_v 4 1/s.
 
@@ -42,8 +45,9 @@ import numpy as np
 
 from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.planners.scan import nearest_per_sector, scan_points
+from mjnav.planners.tracks import predicted_discs, relative_tracks
 
-__all__ = ["DwaConfig", "DwaPlanner", "score_velocities", "window"]
+__all__ = ["DwaConfig", "DwaPlanner", "rollout_times", "score_velocities", "window"]
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
@@ -52,7 +56,8 @@ if TYPE_CHECKING:
 
 @dataclasses.dataclass(frozen=True)
 class DwaConfig:
-    """DWA parameters (see the module docstring); SI units."""
+    """DWA parameters (see the module docstring); SI units. ``tracks``: also keep clear of the
+    LiDAR tracks' predicted discs (the planner then declares ``uses_tracks``)."""
 
     samples: int = 11
     a_window: float = 4.0
@@ -65,6 +70,12 @@ class DwaConfig:
     clearance_cap: float = 1.0
     sectors: int = 180
     k_v: float = 4.0
+    tracks: bool = False
+
+
+def rollout_times(cfg: DwaConfig) -> np.ndarray:
+    """(K,) times of the rollout points, seconds (``rollout_dt`` .. ``horizon``)."""
+    return np.arange(1, round(cfg.horizon / cfg.rollout_dt) + 1) * cfg.rollout_dt
 
 
 def window(velocity: np.ndarray, accel: np.ndarray, limits: Limits, cfg: DwaConfig) -> np.ndarray:
@@ -77,7 +88,8 @@ def window(velocity: np.ndarray, accel: np.ndarray, limits: Limits, cfg: DwaConf
 
 
 def score_velocities(
-    cand: np.ndarray, goal: np.ndarray, points: np.ndarray, limits: Limits, cfg: DwaConfig
+    cand: np.ndarray, goal: np.ndarray, points: np.ndarray, limits: Limits, cfg: DwaConfig,
+    discs: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Scores and admissibility of candidate velocities.
 
@@ -87,17 +99,23 @@ def score_velocities(
         points: (M, 2) obstacle points in the robot frame, metres.
         limits: Robot limits (R_inf, v_max).
         cfg: Parameters.
+        discs: (K, J, 3) moving obstacles ``[x, y, r]`` in the robot frame (metres) at each
+            rollout time (:func:`rollout_times`), or None.
 
     Returns:
         ((S,) scores, (S,) admissible flags).
     """
-    steps = np.arange(1, round(cfg.horizon / cfg.rollout_dt) + 1) * cfg.rollout_dt
+    steps = rollout_times(cfg)
     path = cand[:, None, :] * steps[None, :, None]  # (S, K, 2)
     if len(points):
         diff = path[:, :, None, :] - points[None, None, :, :]
         clear = np.hypot(diff[..., 0], diff[..., 1]).min(axis=2) - limits.inflation
     else:
         clear = np.full(path.shape[:2], np.inf)
+    if discs is not None and discs.shape[1]:
+        diff = path[:, :, None, :] - discs[None, :, :, :2]  # (S, K, J, 2)
+        moving = (np.hypot(diff[..., 0], diff[..., 1]) - discs[None, :, :, 2]).min(axis=2) - limits.inflation
+        clear = np.minimum(clear, moving)
     speed = np.hypot(cand[:, 0], cand[:, 1])
     hit = clear < 0.0
     first = np.where(hit.any(axis=1), hit.argmax(axis=1), len(steps))
@@ -114,9 +132,13 @@ def score_velocities(
 class DwaPlanner:
     """DWA baseline as a :class:`mjnav.planners.base.Planner` (see the module docstring)."""
 
+    #: Reads :attr:`PlannerInput.tracks` (per instance: ``DwaConfig.tracks``).
+    uses_tracks = False
+
     def __init__(self, config: DwaConfig | None = None) -> None:
         """Store the parameters; the task's limits come with :meth:`reset`."""
         self.config = config or DwaConfig()
+        self.uses_tracks = self.config.tracks
         self.limits = Limits()
         self.stats = {"no_admissible": 0, "failures": 0}
 
@@ -140,7 +162,10 @@ class DwaPlanner:
         reach = np.sqrt(2.0) * lim.v_max * cfg.horizon + lim.inflation + 0.5
         points = nearest_per_sector(scan_points(inp.scan, inp.angles, lim.max_range), cfg.sectors, reach)
         cand = window(v, a, lim, cfg)
-        score, ok = score_velocities(cand, np.asarray(inp.goal) - inp.position, points, lim, cfg)
+        discs = None
+        if self.uses_tracks:
+            discs = predicted_discs(relative_tracks(inp.tracks, inp.position), rollout_times(cfg))
+        score, ok = score_velocities(cand, np.asarray(inp.goal) - inp.position, points, lim, cfg, discs)
         if not np.any(ok):
             self.stats["no_admissible"] += 1
             return brake(v, a, lim)

@@ -15,7 +15,13 @@ penalty ``sqrt(w)·error`` with the teb_local_planner meaning of its weight:
   iteration, as TEB) plus the inflation term ``max(0, d_inflation − d)``.
 
 Everything seen by the LiDAR is treated as static (as the paper's TEB with a costmap; it does not
-predict pedestrians). The local goal is the goal when it is within ``horizon``, otherwise the
+predict pedestrians). With ``tracks`` (``planner.tracks=true``) the LiDAR tracks
+(:attr:`mjnav.planners.base.PlannerInput.tracks`, not privileged) are dynamic obstacles as well,
+as teb_local_planner's dynamic-obstacle edges: each interior pose ``i`` also gets the
+``obstacles_per_pose`` nearest tracked discs predicted at constant velocity to the pose's time
+``t_i = ΔT_0 + … + ΔT_{i−1}`` (fixed within an outer iteration, re-associated with the band's
+new times in the next), with the same obstacle and inflation penalties on the distance to the
+disc's surface. The local goal is the goal when it is within ``horizon``, otherwise the
 point at ``horizon`` on the straight line to it (the "global plan" of an empty map); if that point
 lies within ``d_min + ε`` of a LiDAR point it moves to the nearest free point around it.
 
@@ -62,6 +68,7 @@ from scipy.optimize import least_squares
 
 from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.planners.scan import nearest_per_sector, scan_points
+from mjnav.planners.tracks import predicted_discs, relative_tracks
 
 __all__ = [
     "Band",
@@ -84,7 +91,8 @@ if TYPE_CHECKING:
 
 @dataclasses.dataclass(frozen=True)
 class TebConfig:
-    """TEB parameters (see the module docstring); metres, seconds."""
+    """TEB parameters (see the module docstring); metres, seconds. ``tracks``: the LiDAR tracks'
+    predicted discs are dynamic obstacles (the planner then declares ``uses_tracks``)."""
 
     v_max: float = 2.5
     a_max: float = 2.5
@@ -111,6 +119,7 @@ class TebConfig:
     detour_offset: float = 0.8
     k_p: float = 1.5
     k_v: float = 4.0
+    tracks: bool = False
 
 
 @dataclasses.dataclass
@@ -131,9 +140,10 @@ class Band:
 
 def _residuals(
     z: np.ndarray, n: int, goal: np.ndarray, v_start: np.ndarray, assoc: np.ndarray, cfg: TebConfig,
-    w_obs: float,
+    w_obs: float, shrink: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Weighted penalties of a band (time, velocity, acceleration, obstacle, inflation), stacked."""
+    """Weighted penalties of a band (time, velocity, acceleration, obstacle, inflation), stacked;
+    ``shrink`` (n−1, k): radii subtracted from the distances to ``assoc`` (discs), None for points."""
     poses = np.vstack([np.zeros(2), z[: 2 * (n - 1)].reshape(n - 1, 2), goal])
     dts = z[2 * (n - 1):]
     vel = np.diff(poses, axis=0) / dts[:, None]
@@ -145,6 +155,8 @@ def _residuals(
     r_acc = math.sqrt(cfg.w_acceleration) * np.maximum(0.0, acc - (cfg.a_max - cfg.epsilon))
     r_time = math.sqrt(cfg.w_time) * dts
     gap = np.hypot(*np.moveaxis(poses[1:-1, None, :] - assoc, -1, 0)).ravel()
+    if shrink is not None:
+        gap = gap - shrink.ravel()
     r_obs = math.sqrt(w_obs) * np.maximum(0.0, cfg.d_min + cfg.epsilon - gap)
     r_inf = math.sqrt(cfg.w_inflation) * np.maximum(0.0, cfg.d_inflation - gap)
     return np.concatenate([r_time, r_vel, r_acc, r_obs, r_inf])
@@ -185,7 +197,34 @@ def _associate(poses: np.ndarray, points: np.ndarray, k: int) -> np.ndarray:
     return far
 
 
-def optimize_band(band: Band, v_start: np.ndarray, points: np.ndarray, cfg: TebConfig) -> tuple[Band, float]:
+def _associate_tracks(poses: np.ndarray, dts: np.ndarray, tracks: np.ndarray, k: int,
+                      assoc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``assoc`` (n−1, k, 2) with each interior pose's ``k`` nearest tracked discs at its time
+    appended: ((n−1, 2k, 2) centres, (n−1, 2k) radii, zero for the points)."""
+    inner = poses[1:-1]
+    discs = predicted_discs(tracks, np.cumsum(dts)[:-1])  # (n−1, T, 3): pose i at t_i
+    centres, radii = np.full((len(inner), k, 2), 1e3), np.zeros((len(inner), k))
+    if len(tracks):
+        d = np.hypot(*np.moveaxis(inner[:, None, :] - discs[:, :, :2], -1, 0)) - discs[:, :, 2]
+        take = min(k, len(tracks))
+        idx = np.argsort(d, axis=1)[:, :take]
+        chosen = np.take_along_axis(discs, idx[:, :, None], axis=1)
+        centres[:, :take], radii[:, :take] = chosen[:, :, :2], chosen[:, :, 2]
+    shrink = np.concatenate([np.zeros(assoc.shape[:2]), radii], axis=1)
+    return np.concatenate([assoc, centres], axis=1), shrink
+
+
+def _associations(poses: np.ndarray, dts: np.ndarray, points: np.ndarray, tracks: np.ndarray | None,
+                  cfg: TebConfig) -> tuple[np.ndarray, np.ndarray | None]:
+    """Obstacles of each interior pose: (assoc, shrink) for :func:`_residuals`."""
+    assoc = _associate(poses, points, cfg.obstacles_per_pose)
+    if tracks is None:
+        return assoc, None
+    return _associate_tracks(poses, dts, tracks, cfg.obstacles_per_pose, assoc)
+
+
+def optimize_band(band: Band, v_start: np.ndarray, points: np.ndarray, cfg: TebConfig,
+                  tracks: np.ndarray | None = None) -> tuple[Band, float]:
     """Optimise a band (robot frame, pose 0 = robot at the origin) against obstacle points.
 
     Args:
@@ -193,6 +232,8 @@ def optimize_band(band: Band, v_start: np.ndarray, points: np.ndarray, cfg: TebC
         v_start: (2,) robot velocity, m/s.
         points: (M, 2) obstacle points, robot frame, metres.
         cfg: Parameters.
+        tracks: (T, 5) ``[x, y, vx, vy, r]`` moving discs, robot frame (metres, m/s), predicted to
+            each pose's time; None: points only.
 
     Returns:
         (optimised band, cost with the base weights).
@@ -200,18 +241,19 @@ def optimize_band(band: Band, v_start: np.ndarray, points: np.ndarray, cfg: TebC
     n, goal = len(band.dts), band.poses[-1].copy()
     z = np.concatenate([band.poses[1:-1].ravel(), np.maximum(band.dts, 0.02)])
     lower = np.concatenate([np.full(2 * (n - 1), -np.inf), np.full(n, 0.01)])
-    pattern = _sparsity(n, cfg.obstacles_per_pose)
+    per_pose = cfg.obstacles_per_pose * (1 if tracks is None else 2)
+    pattern = _sparsity(n, per_pose)
     w_obs = cfg.w_obstacle
     for _ in range(cfg.outer_iterations):
         poses = np.vstack([np.zeros(2), z[: 2 * (n - 1)].reshape(n - 1, 2), goal])
-        assoc = _associate(poses, points, cfg.obstacles_per_pose)
-        args = (n, goal, v_start, assoc, cfg, w_obs)
+        assoc, shrink = _associations(poses, z[2 * (n - 1):], points, tracks, cfg)
+        args = (n, goal, v_start, assoc, cfg, w_obs) + (() if shrink is None else (shrink,))
         z = least_squares(_residuals, z, jac_sparsity=pattern, bounds=(lower, np.inf), args=args,
                           max_nfev=cfg.inner_evaluations, x_scale=1.0, method="trf").x
         w_obs *= cfg.weight_adapt
     poses = np.vstack([np.zeros(2), z[: 2 * (n - 1)].reshape(n - 1, 2), goal])
-    assoc = _associate(poses, points, cfg.obstacles_per_pose)
-    cost = 0.5 * float(np.sum(_residuals(z, n, goal, v_start, assoc, cfg, cfg.w_obstacle) ** 2))
+    assoc, shrink = _associations(poses, z[2 * (n - 1):], points, tracks, cfg)
+    cost = 0.5 * float(np.sum(_residuals(z, n, goal, v_start, assoc, cfg, cfg.w_obstacle, shrink) ** 2))
     return Band(poses, z[2 * (n - 1):].copy(), np.asarray(v_start, float).copy()), cost
 
 
@@ -308,9 +350,13 @@ def local_goal(goal: np.ndarray, points: np.ndarray, cfg: TebConfig) -> np.ndarr
 class TebPlanner:
     """TEB baseline as a :class:`mjnav.planners.base.Planner` (see the module docstring)."""
 
+    #: Reads :attr:`PlannerInput.tracks` (per instance: ``TebConfig.tracks``).
+    uses_tracks = False
+
     def __init__(self, config: TebConfig | None = None) -> None:
         """Store the parameters; the task's limits come with :meth:`reset`."""
         self.config = config or TebConfig()
+        self.uses_tracks = self.config.tracks
         self.limits = Limits()
         self.stats = {"replans": 0, "infeasible": 0, "failures": 0, "detours": 0}
         self._band: Band | None = None
@@ -346,7 +392,9 @@ class TebPlanner:
         if float(np.hypot(*goal)) < 0.05:
             self._band = None
             return
-        band = self._best_band(goal, np.asarray(inp.velocity, float), points, np.asarray(inp.position, float))
+        tracks = relative_tracks(inp.tracks, inp.position) if self.uses_tracks else None
+        band = self._best_band(goal, np.asarray(inp.velocity, float), points, np.asarray(inp.position, float),
+                               tracks)
         if band is None or not self._feasible(band, points):
             self.stats["infeasible"] += 1
             self._band = None
@@ -360,17 +408,17 @@ class TebPlanner:
         return bool(np.all(clearance(head, points) >= self.limits.radius))
 
     def _best_band(self, goal: np.ndarray, v_start: np.ndarray, points: np.ndarray,
-                   position: np.ndarray) -> Band | None:
+                   position: np.ndarray, tracks: np.ndarray | None = None) -> Band | None:
         cfg = self.config
         warm = shift_band(self._band, position, goal) if self._band is not None else None
         start = resize_band(warm, cfg) if warm is not None else straight_band(goal, cfg)
-        band, cost = optimize_band(start, v_start, points, cfg)
+        band, cost = optimize_band(start, v_start, points, cfg, tracks)
         if clearance(band.poses[1:-1], points).min(initial=np.inf) >= cfg.d_min:
             return band
         best = (cost, band)
         for via in detour_vias(straight_band(goal, cfg), points, cfg) if len(points) else []:
             self.stats["detours"] += 1
-            cand, c = optimize_band(straight_band(goal, cfg, via), v_start, points, cfg)
+            cand, c = optimize_band(straight_band(goal, cfg, via), v_start, points, cfg, tracks)
             if c < best[0]:
                 best = (c, cand)
         return best[1]
