@@ -739,7 +739,8 @@ class EvaluateOptions:
 
     Attributes:
         policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a planner (mpc_goal,
-            mpc_gap, mpc_crowd, teb, dwa, random_jerk, ``package.module:Class``, ``file.py:Class``); required.
+            mpc_gap, mpc_crowd, mpc_tracked, teb, dwa, random_jerk, ``package.module:Class``,
+            ``file.py:Class``); required.
         task: Bundled stage name or task YAML path.
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.
