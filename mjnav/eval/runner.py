@@ -474,6 +474,8 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
     if path is not None:
         _rewrite_sorted(path)
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
+    if (common.get("planner_params") or {}).get("tracks") is True:  # planner.tracks=true: "teb + tracks"
+        policy_name = f"{policy_name} + tracks"
     return {**summary_row(summary, task, policy_name), **aggregate_social(rows),
             "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset,
             "planner_privileged": ",".join(common["planner_privileged"] or ())}

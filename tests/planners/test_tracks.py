@@ -88,8 +88,8 @@ def test_teb_band_keeps_clear_of_a_predicted_disc():
 
 @pytest.mark.parametrize("name,overrides", TRACKING, ids=[" ".join((n, *o)) for n, o in TRACKING])
 def test_evaluate_runs_planners_with_tracks_and_records_them(tmp_path, name, overrides):
-    """``mjnav evaluate policy=NAME planner.tracks=true``: episodes run and the record's planner
-    parameters say tracks (mpc_tracked: not privileged)."""
+    """``mjnav evaluate policy=NAME planner.tracks=true``: episodes run, the record's planner
+    parameters say tracks (mpc_tracked: not privileged) and the summary reads "NAME + tracks"."""
     out = tmp_path / "evals"
     argv = ["evaluate", "task=stage6", f"policy={name}", "episodes=2", "workers=0", f"out={out}",
             "task.timing.episode_steps=40", *(f"planner.{o}" for o in overrides)]
@@ -99,6 +99,8 @@ def test_evaluate_runs_planners_with_tracks_and_records_them(tmp_path, name, ove
     params = records[0]["planner_params"]
     assert params.get("tracks", True) and params.get("track_region", "track_region=true" in overrides) == (
         "track_region=true" in overrides)
+    label = f"| {name} + tracks |" if "tracks=true" in overrides else f"| {name} |"
+    assert label in (out / "summary.md").read_text()
 
 
 def test_tables_list_planners_with_and_without_tracks(tmp_path):
