@@ -34,6 +34,15 @@ of an instant is the smallest over the pedestrians present.
   (pedestrian, instant) pairs whose gap to the robot is below / at least ``social_zone_m``. With
   a crowd that reacts to the robot, near − far is how much the robot disturbs the pedestrians;
   with the paper's non-reactive crowd it measures nothing but chance (a control).
+* ``ped_turn_near`` / ``ped_turn_far`` [rad/s]: the path part of the disturbance: mean heading-change
+  rate |dθ/dt| of the pedestrians, θ the direction of their finite-difference velocity and dθ the
+  wrapped change between consecutive velocities (instants k = 2..T, as the acceleration), over the
+  (pedestrian, instant) pairs near / far as above whose speed at both instants is at least
+  ``turn_min_speed`` (a standing pedestrian has no heading). A pedestrian that swerves around the
+  robot turns faster near it than far from it. Far samples also hold the turns at walls, obstacles,
+  new goals and other pedestrians, which are not spread evenly over near and far, so the robot's
+  effect is best read as near (reactive crowd) against near (the same crowd with ``reactive=false``,
+  the control), same planner and episodes.
 
 The summary (:func:`aggregate_social`) gives every rate with its 95 % Wilson interval
 (``<rate>_lo``, ``<rate>_hi``): step shares pooled over all steps, episode rates over episodes.
@@ -52,6 +61,7 @@ from mjnav.eval.intervals import rate_with_interval
 
 __all__ = [
     "COLLISION_KINDS",
+    "PED_DISTURBANCE_KEYS",
     "SOCIAL_COLUMNS",
     "SocialMetrics",
     "SocialThresholds",
@@ -84,6 +94,9 @@ class SocialThresholds:
             ``near_miss_m + near_miss_release_m``, metres.
         ttc_horizon_s: Collision courses further ahead than this are ignored, seconds.
         stopped_speed: Robot speed below which it is not moving, m/s.
+        turn_min_speed: Pedestrian speed below which its heading is undefined: heading-change
+            samples where it is slower (at either of the two instants) are left out of
+            ``ped_turn_near`` / ``ped_turn_far``, m/s (a third of the default 0.3 m/s walk).
     """
 
     intrusion_m: float = 0.2
@@ -93,13 +106,16 @@ class SocialThresholds:
     near_miss_release_m: float = 0.1
     ttc_horizon_s: float = 5.0
     stopped_speed: float = 0.05
+    turn_min_speed: float = 0.1
 
     def __post_init__(self) -> None:
         """Raises ValueError unless 0 < intrusion <= personal space <= social zone and the rest > 0."""
         if not 0.0 < self.intrusion_m <= self.personal_space_m <= self.social_zone_m:
             raise ValueError(f"thresholds must satisfy 0 < intrusion <= personal space <= social zone, got {self}")
-        if min(self.near_miss_m, self.ttc_horizon_s, self.stopped_speed) <= 0 or self.near_miss_release_m < 0:
-            raise ValueError(f"near_miss_m, ttc_horizon_s and stopped_speed must be > 0, release >= 0, got {self}")
+        if (min(self.near_miss_m, self.ttc_horizon_s, self.stopped_speed, self.turn_min_speed) <= 0
+                or self.near_miss_release_m < 0):
+            raise ValueError(f"near_miss_m, ttc_horizon_s, stopped_speed and turn_min_speed must be > 0, "
+                             f"release >= 0, got {self}")
 
 
 #: The thresholds evaluations use.
@@ -134,6 +150,8 @@ class SocialMetrics:
     ped_speed_far: float
     ped_accel_near: float
     ped_accel_far: float
+    ped_turn_near: float = math.nan
+    ped_turn_far: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict of Python numbers (NaN and infinities → None)."""
@@ -229,16 +247,33 @@ def _mean_where(values: np.ndarray, mask: np.ndarray) -> float:
     return float(np.mean(chosen)) if chosen.size else math.nan
 
 
-def _disturbance(pedestrians: np.ndarray, gaps: np.ndarray, dt: float, th: SocialThresholds) -> tuple[float, ...]:
-    """(speed near, speed far, acceleration near, acceleration far) of the pedestrians, m/s and m/s²."""
+def _turn_rates(vel: np.ndarray, speed: np.ndarray, dt: float, min_speed: float) -> np.ndarray:
+    """(T+1, P) heading-change rates |dθ/dt|, rad/s, at k = 2..T (NaN elsewhere and where the pedestrian is
+    slower than ``min_speed`` at k or k − 1): the wrapped angle between the velocities at k − 1 and k, ÷ dt."""
+    turn = np.full_like(speed, np.nan)
+    if len(vel) > 2:
+        a, b = vel[1:-1], vel[2:]
+        angle = np.abs(np.arctan2(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0], np.sum(a * b, axis=-1)))
+        with np.errstate(invalid="ignore"):
+            moving = (speed[1:-1] >= min_speed) & (speed[2:] >= min_speed)
+        turn[2:] = np.where(moving, angle / dt, np.nan)
+    return turn
+
+
+def _disturbance(pedestrians: np.ndarray, gaps: np.ndarray, dt: float, th: SocialThresholds) -> dict[str, float]:
+    """``ped_{speed,accel,turn}_{near,far}``: the pedestrians' mean speed, acceleration magnitude and
+    heading-change rate near / far from the robot, m/s, m/s² and rad/s."""
     vel = pedestrian_velocities(pedestrians, dt)
     speed = np.hypot(vel[..., 0], vel[..., 1])
     accel = np.full_like(speed, np.nan)
     if len(vel) > 2:  # backward differences of the velocities from k = 2 on (k = 1 reuses the forward one)
         dv = np.diff(vel[1:], axis=0) / dt
         accel[2:] = np.hypot(dv[..., 0], dv[..., 1])
+    turn = _turn_rates(vel, speed, dt, th.turn_min_speed)
     near, far = gaps < th.social_zone_m, gaps >= th.social_zone_m
-    return (_mean_where(speed, near), _mean_where(speed, far), _mean_where(accel, near), _mean_where(accel, far))
+    return {f"ped_{name}_{side}": _mean_where(values, mask)
+            for name, values in (("speed", speed), ("accel", accel), ("turn", turn))
+            for side, mask in (("near", near), ("far", far))}
 
 
 def _path(positions: np.ndarray, start: np.ndarray, goal: np.ndarray, tolerance: float,
@@ -315,8 +350,7 @@ def social_metrics(
         min_ttc_s=float(np.min(ttc)) if ttc.size else math.nan,
         straight_line_m=straight, path_length_m=travelled, path_efficiency=efficiency, spl=spl,
         **counted,
-        **dict(zip(("ped_speed_near", "ped_speed_far", "ped_accel_near", "ped_accel_far"),
-                   _disturbance(peds, gaps, dt, th))),
+        **_disturbance(peds, gaps, dt, th),
     )
 
 
@@ -357,7 +391,8 @@ def aggregate_social(records: Sequence[Mapping[str, Any]]) -> dict[str, float]:
         ``collision_kind``; ``min_ped_distance_m`` (minimum) and ``mean_min_ped_distance_m``,
         ``near_misses_per_episode``, ``mean_min_ttc_s`` (episodes on a course), ``stopped_time_s``,
         ``path_efficiency`` (over successes), ``spl`` (over all), ``ped_speed_near`` / ``_far``,
-        ``ped_accel_near`` / ``_far`` (means of the episodes' values). NaN where undefined.
+        ``ped_accel_near`` / ``_far``, ``ped_turn_near`` / ``_far`` (means of the episodes' values). NaN where
+        undefined.
     """
     social = [SocialMetrics.from_dict(r["social"]) for r in records if r.get("social")]
     wins = [s for s, r in zip(social, (r for r in records if r.get("social"))) if r.get("outcome") == "success"]
@@ -379,10 +414,14 @@ def aggregate_social(records: Sequence[Mapping[str, Any]]) -> dict[str, float]:
     out["stopped_time_s"] = _finite_mean(s.stopped_time_s for s in social)
     out["path_efficiency"] = _finite_mean(s.path_efficiency for s in wins)
     out["spl"] = _finite_mean(s.spl for s in social)
-    for key in ("ped_speed_near", "ped_speed_far", "ped_accel_near", "ped_accel_far"):
+    for key in PED_DISTURBANCE_KEYS:
         out[key] = _finite_mean(getattr(s, key) for s in social)
     return out
 
+
+#: Summary keys of the pedestrian disturbance (speed, acceleration, heading-change rate near / far from the robot).
+PED_DISTURBANCE_KEYS = ("ped_speed_near", "ped_speed_far", "ped_accel_near", "ped_accel_far",
+                        "ped_turn_near", "ped_turn_far")
 
 #: Summary columns of the social metrics: (key, markdown label, format; ``pct`` = fraction shown in %).
 SOCIAL_COLUMNS: tuple[tuple[str, str, str], ...] = (
@@ -395,6 +434,10 @@ SOCIAL_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("path_efficiency", "Path eff.", "{:.3f}"),
     ("spl", "SPL", "{:.3f}"),
     ("stopped_time_s", "Stopped (s)", "{:.2f}"),
+    ("ped_speed_near", f"Ped. speed < {THRESHOLDS.social_zone_m:g} m (m/s)", "{:.3f}"),
+    ("ped_speed_far", "Ped. speed far (m/s)", "{:.3f}"),
+    ("ped_turn_near", f"Ped. turn < {THRESHOLDS.social_zone_m:g} m (rad/s)", "{:.3f}"),
+    ("ped_turn_far", "Ped. turn far (rad/s)", "{:.3f}"),
     ("collision_pedestrian_rate", "Coll. ped. (%)", "pct"),
     ("collision_obstacle_rate", "Coll. obst. (%)", "pct"),
     ("collision_wall_rate", "Coll. wall (%)", "pct"),

@@ -374,7 +374,8 @@ def format_table(rows: Sequence[dict[str, Any]], abs_acc: bool = False, social: 
     return _format_paper(rows, abs_acc)
 
 
-#: Social columns of :func:`format_social`: (summary key, label, rate with a Wilson interval or number format).
+#: Social columns of :func:`format_social`: (summary key, label, format): ``rate`` = a rate with its Wilson
+#: interval; ``near/far:<format>`` = ``<key>_near`` / ``<key>_far`` in one cell; else a number format.
 _SOCIAL_TABLE = (
     ("mean_min_ped_distance_m", "min gap to a pedestrian m", "{:.3f}"),
     ("intrusion_share", "intrusion % steps [95 % CI]", "rate"),
@@ -385,6 +386,9 @@ _SOCIAL_TABLE = (
     ("path_efficiency", "path efficiency", "{:.3f}"),
     ("spl", "SPL", "{:.3f}"),
     ("stopped_time_s", "stopped s", "{:.2f}"),
+    ("ped_speed", "ped. speed near / far m/s", "near/far:{:.3f}"),
+    ("ped_accel", "ped. accel. near / far m/s²", "near/far:{:.2f}"),
+    ("ped_turn", "ped. turn rate near / far rad/s", "near/far:{:.3f}"),
     ("collision_pedestrian_rate", "collisions with pedestrians % [95 % CI]", "rate"),
     ("collision_obstacle_rate", "with obstacles % [95 % CI]", "rate"),
     ("collision_wall_rate", "with walls % [95 % CI]", "rate"),
@@ -404,6 +408,9 @@ def format_social(rows: Sequence[dict[str, Any]]) -> str:
 
 
 def _social_cell(summary: dict[str, float], key: str, fmt: str) -> str:
+    if fmt.startswith("near/far:"):  # near and far from the robot (within / beyond the social zone)
+        return " / ".join(_social_cell(summary, f"{key}_{side}", fmt.removeprefix("near/far:"))
+                          for side in ("near", "far"))
     value = summary.get(key, math.nan)
     if value is None or math.isnan(value):
         return "–"

@@ -39,8 +39,10 @@ the top. (An earlier tuning, on scenarios that overlapped the evaluation set, ch
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from mjnav.control.dynamics import Limits, brake, track_velocity
@@ -108,8 +110,7 @@ def score_velocities(
     steps = rollout_times(cfg)
     path = cand[:, None, :] * steps[None, :, None]  # (S, K, 2)
     if len(points):
-        diff = path[:, :, None, :] - points[None, None, :, :]
-        clear = np.hypot(diff[..., 0], diff[..., 1]).min(axis=2) - limits.inflation
+        clear = _nearest_distance(path, np.ascontiguousarray(points, dtype=np.float64)) - limits.inflation
     else:
         clear = np.full(path.shape[:2], np.inf)
     if discs is not None and discs.shape[1]:
@@ -127,6 +128,53 @@ def score_velocities(
     score = (cfg.w_progress * progress + cfg.w_clearance * clearance
              + cfg.w_speed * speed / (np.sqrt(2.0) * limits.v_max))
     return score, admissible
+
+
+@numba.njit(cache=True)
+def _nearest_distance(path: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(S, K) distance from each rollout point to its nearest obstacle point, metres.
+
+    The same numbers as ``np.hypot(*(path[:, :, None] - points).T).T.min(axis=2)`` without the
+    (S, K, M) intermediate arrays: squared distances pick the candidates (those within a relative
+    1e-9 of the smallest, far more than ``hypot``'s and the squares' rounding), and the minimum of
+    libm's ``hypot`` over them is numpy's minimum over all; with a NaN, every point counts and the
+    minimum propagates NaN as numpy's does.
+
+    Args:
+        path: (S, K, 2) rollout points, metres.
+        points: (M ≥ 1, 2) obstacle points, metres.
+    """
+    out = np.empty(path.shape[:2])
+    for s in range(path.shape[0]):
+        for k in range(path.shape[1]):
+            out[s, k] = _nearest_one(path[s, k, 0], path[s, k, 1], points)
+    return out
+
+
+@numba.njit(cache=True)
+def _nearest_one(px: float, py: float, points: np.ndarray) -> float:
+    """numpy's ``min(hypot(px − x, py − y))`` over the points (see :func:`_nearest_distance`), metres."""
+    best_sq = np.inf
+    for p in range(points.shape[0]):
+        dx, dy = px - points[p, 0], py - points[p, 1]
+        sq = dx * dx + dy * dy
+        if sq != sq:
+            best_sq = np.inf  # NaN: every point is a candidate
+            break
+        best_sq = min(best_sq, sq)
+    bound = best_sq * (1.0 + 1e-9) + 1e-300
+    best = np.nan
+    first = True
+    for p in range(points.shape[0]):
+        dx, dy = px - points[p, 0], py - points[p, 1]
+        if not dx * dx + dy * dy <= bound and bound < np.inf:
+            continue
+        dist = math.hypot(dx, dy)
+        if first:
+            best, first = dist, False
+        elif best == best and (dist < best or dist != dist):
+            best = dist
+    return best
 
 
 class DwaPlanner:

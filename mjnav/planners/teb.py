@@ -2,8 +2,9 @@
 
 A band of poses ``x_0..x_n`` (``x_0`` = the robot, ``x_n`` = a local goal) with time intervals
 ``ΔT_0..ΔT_{n−1}`` is optimised with scipy's sparse nonlinear least squares
-(``least_squares(method="trf", jac_sparsity=...)``), as TEB does with g2o: every term is a soft
-penalty ``sqrt(w)·error`` with the teb_local_planner meaning of its weight:
+(``least_squares(method="trf", jac_sparsity=...)``; :mod:`mjnav.planners.trf` runs the same
+algorithm compiled, bit for bit), as TEB does with g2o: every term is a soft penalty
+``sqrt(w)·error`` with the teb_local_planner meaning of its weight:
 
 * time optimality: ``sqrt(w_time)·ΔT_i``;
 * velocity: ``max(0, ‖v_i‖ − (v_max − ε))``, ``v_i = (x_{i+1} − x_i)/ΔT_i`` (norm limit, omni);
@@ -59,6 +60,7 @@ chose (1.2, 2).)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 from typing import TYPE_CHECKING
@@ -67,6 +69,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from mjnav.control.dynamics import Limits, brake, track_velocity
+from mjnav.planners import trf
 from mjnav.planners.scan import nearest_per_sector, scan_points
 from mjnav.planners.tracks import predicted_discs, relative_tracks
 
@@ -184,6 +187,32 @@ def _sparsity(n: int, k: int) -> np.ndarray:
     return pattern
 
 
+@functools.lru_cache(maxsize=64)
+def _structure(n: int, k: int) -> trf.Structure:
+    """Compiled solver's view of :func:`_sparsity` (cached per band length)."""
+    return trf.structure(_sparsity(n, k))
+
+
+def _terms(cfg: TebConfig) -> trf.BandTerms:
+    """The constants of :func:`_residuals`, computed as it computes them."""
+    return trf.BandTerms(math.sqrt(cfg.w_time), math.sqrt(cfg.w_velocity), cfg.v_max - cfg.epsilon,
+                         math.sqrt(cfg.w_acceleration), cfg.a_max - cfg.epsilon, cfg.d_min + cfg.epsilon,
+                         math.sqrt(cfg.w_inflation), cfg.d_inflation)
+
+
+def _least_squares(z: np.ndarray, n: int, goal: np.ndarray, v_start: np.ndarray, assoc: np.ndarray,
+                   cfg: TebConfig, w_obs: float, lower: np.ndarray, shrink: np.ndarray | None = None) -> np.ndarray:
+    """One outer iteration's solve: the compiled :func:`mjnav.planners.trf.solve_band` where it can
+    run, scipy's ``least_squares`` otherwise (the same result, bit for bit). With tracked discs
+    (``shrink``: their radii, :func:`_associations`) always scipy's: the compiled residuals know points only."""
+    if shrink is None and trf.available():
+        return trf.solve_band(z, n, goal, v_start, assoc, _terms(cfg), w_obs, lower, cfg.inner_evaluations,
+                              _structure(n, cfg.obstacles_per_pose))
+    args = (n, goal, v_start, assoc, cfg, w_obs) + (() if shrink is None else (shrink,))
+    return least_squares(_residuals, z, jac_sparsity=_sparsity(n, assoc.shape[1]), bounds=(lower, np.inf),
+                         args=args, max_nfev=cfg.inner_evaluations, x_scale=1.0, method="trf").x
+
+
 def _associate(poses: np.ndarray, points: np.ndarray, k: int) -> np.ndarray:
     """(n−1, k, 2) nearest obstacle points of each interior pose (far dummies when too few)."""
     inner = poses[1:-1]
@@ -241,15 +270,11 @@ def optimize_band(band: Band, v_start: np.ndarray, points: np.ndarray, cfg: TebC
     n, goal = len(band.dts), band.poses[-1].copy()
     z = np.concatenate([band.poses[1:-1].ravel(), np.maximum(band.dts, 0.02)])
     lower = np.concatenate([np.full(2 * (n - 1), -np.inf), np.full(n, 0.01)])
-    per_pose = cfg.obstacles_per_pose * (1 if tracks is None else 2)
-    pattern = _sparsity(n, per_pose)
     w_obs = cfg.w_obstacle
     for _ in range(cfg.outer_iterations):
         poses = np.vstack([np.zeros(2), z[: 2 * (n - 1)].reshape(n - 1, 2), goal])
         assoc, shrink = _associations(poses, z[2 * (n - 1):], points, tracks, cfg)
-        args = (n, goal, v_start, assoc, cfg, w_obs) + (() if shrink is None else (shrink,))
-        z = least_squares(_residuals, z, jac_sparsity=pattern, bounds=(lower, np.inf), args=args,
-                          max_nfev=cfg.inner_evaluations, x_scale=1.0, method="trf").x
+        z = _least_squares(z, n, goal, v_start, assoc, cfg, w_obs, lower, shrink)
         w_obs *= cfg.weight_adapt
     poses = np.vstack([np.zeros(2), z[: 2 * (n - 1)].reshape(n - 1, 2), goal])
     assoc, shrink = _associations(poses, z[2 * (n - 1):], points, tracks, cfg)

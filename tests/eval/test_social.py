@@ -108,6 +108,48 @@ def test_absent_pedestrians_and_the_robots_influence() -> None:
     assert m.min_ped_distance_m == pytest.approx(0.5)
 
 
+def _circling(steps: int, radius: float, rate: float, r: float = 0.2) -> np.ndarray:
+    """(steps+1, 3) a pedestrian walking round the origin at ``radius`` m, ``rate`` rad/s (several turns)."""
+    angle = rate * DT * np.arange(steps + 1)
+    return np.stack([radius * np.cos(angle), radius * np.sin(angle), np.full(steps + 1, r)], axis=1)
+
+
+def test_pedestrians_turning_near_the_robot_have_the_known_turn_rate() -> None:
+    """The robot (r = 0.3) stands at the origin. A pedestrian circling it 1 m away (gap 0.5 m, near) at 0.5
+    rad/s turns its finite-difference velocity by exactly 0.5·t_c per step, also across θ = ±π: 0.5 rad/s
+    near; one walking straight 8 m away turns 0 rad/s far. A pedestrian jittering in place (heading flips
+    by π each step) is slower than ``turn_min_speed`` and left out. The non-reactive control: the same
+    walker going straight past the robot turns 0 rad/s near and far."""
+    steps, still = 200, np.zeros((201, 2))
+    k = np.arange(201)
+    straight_far = np.stack([-10.0 + 0.05 * k, np.full(201, 8.0), np.full(201, 0.2)], axis=1)
+    jitter = np.stack([0.9 + 0.001 * (k % 2), np.zeros(201), np.full(201, 0.2)], axis=1)
+    peds = np.stack([_circling(steps, 1.0, 0.5), straight_far, jitter], axis=1)
+    m = social_metrics(still, still, peds, DT, 0.3, (0, 0), (1, 0), "timeout")
+    assert m.ped_turn_near == pytest.approx(0.5) and m.ped_turn_far == pytest.approx(0.0, abs=1e-12)
+    assert m.ped_speed_far == pytest.approx(0.5)
+    counted = social_metrics(still, still, peds, DT, 0.3, (0, 0), (1, 0), "timeout",
+                             thresholds=SocialThresholds(turn_min_speed=0.005))
+    assert counted.ped_turn_near > 10  # with the threshold below its 0.01 m/s jitter, its flips count
+    passing = np.stack([-5.0 + 0.05 * k, np.full(201, 1.0), np.full(201, 0.2)], axis=1)[:, None, :]
+    control = social_metrics(still, still, passing, DT, 0.3, (0, 0), (1, 0), "timeout")
+    assert control.ped_turn_near == pytest.approx(0.0, abs=1e-12) and control.ped_turn_far == pytest.approx(
+        0.0, abs=1e-12)
+    assert math.isnan(social_metrics(still, still, jitter[:, None, :], DT, 0.3, (0, 0), (1, 0),
+                                     "timeout").ped_turn_near)  # no moving pedestrian: undefined
+    with pytest.raises(ValueError, match="turn_min_speed"):
+        SocialThresholds(turn_min_speed=0.0)
+
+
+def test_records_without_the_turn_rate_still_load() -> None:
+    """Records written before the turn rate (no ``ped_turn_*``) read back with NaN there; the summary skips them."""
+    old = {k: v for k, v in _blank(10).to_dict().items() if not k.startswith("ped_turn")}
+    assert math.isnan(SocialMetrics.from_dict(old).ped_turn_near)
+    new = dataclasses.replace(_blank(10), ped_turn_near=0.4, ped_turn_far=0.1).to_dict()
+    s = aggregate_social([{"outcome": "success", "social": old}, {"outcome": "success", "social": new}])
+    assert (s["ped_turn_near"], s["ped_turn_far"]) == pytest.approx((0.4, 0.1))
+
+
 def test_trace_input_and_thresholds_in_one_place() -> None:
     """An EpisodeTrace carries its control period; thresholds are validated and named in the columns."""
     x = np.linspace(0, 1, 11)
@@ -165,6 +207,7 @@ def test_a_real_evaluation_writes_the_social_fields(tmp_path) -> None:
         assert r["paper_rule"] is None or {"social", "collision_kind"} <= set(r["paper_rule"])
         assert r["social"]["steps"] == r["metrics"]["steps"]
     assert rows[0]["social_episodes"] == 2 and "intrusion_share_lo" in rows[0] and "success_rate_hi" in rows[0]
+    assert {"ped_turn_near", "ped_turn_far", "ped_speed_near", "ped_accel_far"} <= set(rows[0])
     assert "Near misses / ep." in (tmp_path / "summary.md").read_text()
     assert "intrusion_share_hi" in (tmp_path / "summary.csv").read_text().splitlines()[0]
     again = evaluate(spec, tmp_path, progress=False)  # a resumed summary reads the fields back
@@ -186,4 +229,5 @@ def test_tables_show_the_social_metrics_on_request() -> None:
     assert text.startswith(tables.format_table(rows)) and "intrusion % steps" in text
     lo, hi = wilson(6, 30)
     assert f"20.0 [{100 * lo:.1f}, {100 * hi:.1f}]" in text
+    assert "ped. turn rate near / far rad/s" in text and "| 0.000 / 0.000 |" in text  # near / far in one cell
     assert text.splitlines()[-1].startswith("| stage5 | old | – |")

@@ -1,0 +1,75 @@
+#!/usr/bin/env bash
+# Table IV's planners (Ours, mpc_goal, DWA, TEB) on stages 5-7 under reactive ORCA and social-force
+# crowds (issue 37), both collision rules, laid out so that `mjnav tables` reads them:
+#
+#   <out>/<crowd>/<slug>/<stage>_contact.jsonl, <stage>_scan.jsonl   finished evaluations
+#   <out>/<crowd>/<slug>/<stage>.jsonl                                 the one running now (resumable)
+#   <out>/<crowd>/<slug>/contact/<stage>.jsonl                         contact run the paper's rule settles from
+#   <out>/logs/<crowd>_<slug>_<stage>_<rule>.log, <out>/logs/driver.log
+#
+# slugs as in `mjnav tables table=4 planners=mpc_goal,dwa`: ours, planner_mpc_goal, planner_dwa, teb.
+# Order: cheapest first, both crowds per phase: (Ours, mpc_goal), then DWA, then TEB; per stage the
+# contact rule first, whose settled episodes the paper's rule (task.collision=scan) reuses.
+# One evaluation at a time, in this process's Python (mjnav from PYTHONPATH: run it from a pinned
+# checkout; resuming needs the same commit). Finished steps are skipped, so a rerun resumes.
+#
+# usage: PYTHONPATH=<checkout> experiments/table4_reactive.sh [OUT] [EPISODES] [WORKERS]
+# tables: experiments/table4_reactive.sh tables [OUT] [EPISODES]
+set -u
+PY=${PYTHON:-python}
+CROWDS=${CROWDS:-"orca social_force"}
+STAGES=${STAGES:-"stage5 stage6 stage7"}
+
+tables() {  # the tables from what is there (unfinished runs as "n of N"), one per crowd model
+    local out=$1 episodes=$2 crowd
+    for crowd in $CROWDS; do
+        echo "### crowd.model=$crowd, crowd.reactive=true"
+        echo
+        "$PY" -m mjnav tables table=4 out="$out/$crowd" episodes="$episodes" run=false planners=mpc_goal,dwa \
+            social=true
+        echo
+    done
+}
+
+one() {  # one evaluation: crowd, slug, policy, stage, rule
+    local crowd=$1 slug=$2 policy=$3 stage=$4 rule=$5
+    local dir="$OUT/$crowd/$slug" log="$OUT/logs/${crowd}_${slug}_${stage}_${rule}.log"
+    if [ -f "$dir/${stage}_${rule}.jsonl" ]; then return 0; fi
+    mkdir -p "$dir/contact" "$OUT/logs"
+    local extra=()
+    if [ "$rule" = scan ]; then extra=(from_contact="$dir/contact"); fi
+    echo "$(date -u +%FT%TZ) start $crowd $slug $stage $rule" >> "$OUT/logs/driver.log"
+    "$PY" -m mjnav evaluate task="$stage" policy="$policy" episodes="$EPISODES" workers="$WORKERS" out="$dir" \
+        task.collision="$rule" task.crowd.model="$crowd" task.crowd.reactive=true "${extra[@]}" >> "$log" 2>&1
+    local rc=$?
+    echo "$(date -u +%FT%TZ) end $crowd $slug $stage $rule rc=$rc" >> "$OUT/logs/driver.log"
+    [ $rc -eq 0 ] || return $rc
+    if [ "$rule" = contact ]; then cp "$dir/$stage.jsonl" "$dir/${stage}_contact.jsonl" && mv "$dir/$stage.jsonl" "$dir/contact/$stage.jsonl"
+    else mv "$dir/$stage.jsonl" "$dir/${stage}_scan.jsonl"; fi
+}
+
+pair() {  # both rules of one method and stage, the contact rule first
+    one "$@" contact && one "$@" scan
+}
+
+if [ "${1:-}" = tables ]; then
+    tables "${2:-evals/table4_reactive}" "${3:-1000}"
+    exit 0
+fi
+OUT=${1:-evals/table4_reactive}
+EPISODES=${2:-1000}
+WORKERS=${3:-1}
+for crowd in $CROWDS; do
+    for stage in $STAGES; do
+        pair "$crowd" ours "${stage}_policy" "$stage"
+        pair "$crowd" planner_mpc_goal mpc_goal "$stage"
+    done
+done
+for planner in dwa teb; do
+    slug=planner_$planner
+    [ $planner = teb ] && slug=teb
+    for crowd in $CROWDS; do
+        for stage in $STAGES; do pair "$crowd" $slug $planner "$stage"; done
+    done
+done
+echo "$(date -u +%FT%TZ) all done" >> "$OUT/logs/driver.log"
