@@ -23,7 +23,11 @@ Every control step:
 Obstacles are treated as static (the scan of this step). With ``tracks`` (``planner.tracks=true``)
 the LiDAR tracks (:attr:`mjnav.planners.base.PlannerInput.tracks`, not privileged) are obstacles
 as well: each tracked pedestrian's disc at constant velocity, at the time of each rollout point,
-counts in that point's clearance (:mod:`mjnav.planners.tracks`). Parameters (:class:`DwaConfig`):
+counts in that point's clearance (:mod:`mjnav.planners.tracks`), and the scan points within a
+track's radius + ``track_pad`` (0.15 m) of its centre are left to that prediction (otherwise the
+pedestrian would also stand still where it is). Development check (stage 7, paper's rule, 100
+tuning scenarios from ``seed_offset=1000000100``): 73 % without tracks, 71 % with the discs only
+added to the scan, 78 % with the tracked points left out. Parameters (:class:`DwaConfig`):
 samples 11, a_window 4 m/s², horizon 1.5 s, rollout_dt 0.1 s, a_brake 2.5 m/s², weights
 1.0 / 1.6 / 0.1, clearance_cap 1.0 m, k_v 4 1/s.
 
@@ -47,7 +51,7 @@ import numpy as np
 
 from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.planners.scan import nearest_per_sector, scan_points
-from mjnav.planners.tracks import predicted_discs, relative_tracks
+from mjnav.planners.tracks import predicted_discs, relative_tracks, untracked_points
 
 __all__ = ["DwaConfig", "DwaPlanner", "rollout_times", "score_velocities", "window"]
 
@@ -59,7 +63,8 @@ if TYPE_CHECKING:
 @dataclasses.dataclass(frozen=True)
 class DwaConfig:
     """DWA parameters (see the module docstring); SI units. ``tracks``: also keep clear of the
-    LiDAR tracks' predicted discs (the planner then declares ``uses_tracks``)."""
+    LiDAR tracks' predicted discs (the planner then declares ``uses_tracks``); ``track_pad``: scan
+    points closer than a track's radius plus this to its centre are the track's, metres."""
 
     samples: int = 11
     a_window: float = 4.0
@@ -73,6 +78,7 @@ class DwaConfig:
     sectors: int = 180
     k_v: float = 4.0
     tracks: bool = False
+    track_pad: float = 0.15
 
 
 def rollout_times(cfg: DwaConfig) -> np.ndarray:
@@ -208,11 +214,14 @@ class DwaPlanner:
     def _act(self, inp: PlannerInput, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         cfg, lim = self.config, self.limits
         reach = np.sqrt(2.0) * lim.v_max * cfg.horizon + lim.inflation + 0.5
-        points = nearest_per_sector(scan_points(inp.scan, inp.angles, lim.max_range), cfg.sectors, reach)
-        cand = window(v, a, lim, cfg)
+        points = scan_points(inp.scan, inp.angles, lim.max_range)
         discs = None
         if self.uses_tracks:
-            discs = predicted_discs(relative_tracks(inp.tracks, inp.position), rollout_times(cfg))
+            tracks = relative_tracks(inp.tracks, inp.position)
+            points = untracked_points(points, tracks, cfg.track_pad)
+            discs = predicted_discs(tracks, rollout_times(cfg))
+        points = nearest_per_sector(points, cfg.sectors, reach)
+        cand = window(v, a, lim, cfg)
         score, ok = score_velocities(cand, np.asarray(inp.goal) - inp.position, points, lim, cfg, discs)
         if not np.any(ok):
             self.stats["no_admissible"] += 1

@@ -22,7 +22,8 @@ as teb_local_planner's dynamic-obstacle edges: each interior pose ``i`` also get
 ``obstacles_per_pose`` nearest tracked discs predicted at constant velocity to the pose's time
 ``t_i = ΔT_0 + … + ΔT_{i−1}`` (fixed within an outer iteration, re-associated with the band's
 new times in the next), with the same obstacle and inflation penalties on the distance to the
-disc's surface. The local goal is the goal when it is within ``horizon``, otherwise the
+disc's surface. The scan points within a track's radius + ``track_pad`` (0.15 m) of its centre are
+left to that prediction, as for DWA. The local goal is the goal when it is within ``horizon``, otherwise the
 point at ``horizon`` on the straight line to it (the "global plan" of an empty map); if that point
 lies within ``d_min + ε`` of a LiDAR point it moves to the nearest free point around it.
 
@@ -71,7 +72,7 @@ from scipy.optimize import least_squares
 from mjnav.control.dynamics import Limits, brake, track_velocity
 from mjnav.planners import trf
 from mjnav.planners.scan import nearest_per_sector, scan_points
-from mjnav.planners.tracks import predicted_discs, relative_tracks
+from mjnav.planners.tracks import predicted_discs, relative_tracks, untracked_points
 
 __all__ = [
     "Band",
@@ -95,7 +96,8 @@ if TYPE_CHECKING:
 @dataclasses.dataclass(frozen=True)
 class TebConfig:
     """TEB parameters (see the module docstring); metres, seconds. ``tracks``: the LiDAR tracks'
-    predicted discs are dynamic obstacles (the planner then declares ``uses_tracks``)."""
+    predicted discs are dynamic obstacles (the planner then declares ``uses_tracks``);
+    ``track_pad``: scan points closer than a track's radius plus this to its centre are the track's."""
 
     v_max: float = 2.5
     a_max: float = 2.5
@@ -123,6 +125,7 @@ class TebConfig:
     k_p: float = 1.5
     k_v: float = 4.0
     tracks: bool = False
+    track_pad: float = 0.15
 
 
 @dataclasses.dataclass
@@ -411,13 +414,15 @@ class TebPlanner:
     def _replan(self, inp: PlannerInput) -> None:
         cfg = self.config
         self.stats["replans"] += 1
-        points = nearest_per_sector(scan_points(inp.scan, inp.angles, self.limits.max_range),
-                                    cfg.obstacle_sectors, cfg.obstacle_reach)
+        points = scan_points(inp.scan, inp.angles, self.limits.max_range)
+        tracks = relative_tracks(inp.tracks, inp.position) if self.uses_tracks else None
+        if tracks is not None:
+            points = untracked_points(points, tracks, cfg.track_pad)
+        points = nearest_per_sector(points, cfg.obstacle_sectors, cfg.obstacle_reach)
         goal = local_goal(np.asarray(inp.goal) - inp.position, points, cfg)
         if float(np.hypot(*goal)) < 0.05:
             self._band = None
             return
-        tracks = relative_tracks(inp.tracks, inp.position) if self.uses_tracks else None
         band = self._best_band(goal, np.asarray(inp.velocity, float), points, np.asarray(inp.position, float),
                                tracks)
         if band is None or not self._feasible(band, points):

@@ -5,7 +5,8 @@ metres, m/s). The planners that read them (``planner.tracks=true`` for ``teb``, 
 ``mpc_goal``; ``mpc_tracked`` always) predict every track at constant velocity over their own
 horizon and treat the predicted discs as obstacles in addition to the scan: time-indexed where the
 planner has time along its trajectory (TEB's poses, DWA's rollouts), swept over the horizon where
-it has not (the convex region of ``mpc_goal``: :func:`scan_with_discs`).
+it has not (the convex region of ``mpc_goal``: :func:`scan_with_discs`). TEB and DWA leave the
+scan points a track explains to its prediction (:func:`untracked_points`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import numpy as np
 
 from mjnav.geometry.raycast import cast_rays
 
-__all__ = ["predicted_discs", "relative_tracks", "scan_with_discs"]
+__all__ = ["predicted_discs", "relative_tracks", "scan_with_discs", "untracked_points"]
 
 
 def relative_tracks(tracks: np.ndarray | None, position: np.ndarray) -> np.ndarray:
@@ -67,3 +68,22 @@ def scan_with_discs(scan: np.ndarray, angles: np.ndarray, discs: np.ndarray, max
         return np.asarray(scan, dtype=np.float64)
     ranges = cast_rays(np.zeros(2), angles, None, np.ascontiguousarray(circles), max_range)
     return np.minimum(np.asarray(scan, dtype=np.float64), ranges)
+
+
+def untracked_points(points: np.ndarray, tracks: np.ndarray, pad: float) -> np.ndarray:
+    """The scan points that no track explains: those farther than its radius + ``pad`` from every
+    track's centre (both relative to the robot, metres). A planner that predicts the tracks then
+    keeps the static world from the scan without also freezing the tracked pedestrians in it.
+
+    Args:
+        points: (M, 2) scan points, metres.
+        tracks: (T, 5) ``[x, y, vx, vy, r]`` in the points' frame.
+        pad: Metres beyond each track's radius (its estimation error).
+
+    Returns:
+        (M', 2) the points kept, in their order.
+    """
+    if len(points) == 0 or len(tracks) == 0:
+        return points
+    gap = np.hypot(points[:, None, 0] - tracks[None, :, 0], points[:, None, 1] - tracks[None, :, 1])
+    return points[np.all(gap > tracks[None, :, 4] + pad, axis=1)]

@@ -19,7 +19,7 @@ from mjnav.planners import make_planner, resolve_planner
 from mjnav.planners.base import PlannerInput, declared_privileged, declared_tracks
 from mjnav.planners.dwa import DwaConfig, rollout_times, score_velocities
 from mjnav.planners.teb import Band, TebConfig, optimize_band
-from mjnav.planners.tracks import predicted_discs, scan_with_discs
+from mjnav.planners.tracks import predicted_discs, scan_with_discs, untracked_points
 from mjnav.schema import ConfigError
 
 TRACKING = [("teb", ("tracks=true",)), ("dwa", ("tracks=true",)), ("mpc_goal", ("tracks=true",)),
@@ -52,6 +52,14 @@ def test_prediction_and_discs_in_the_scan():
     out = scan_with_discs(scan, angles, discs[:, :1], 10.0, 0.5)
     assert out[0] == pytest.approx(1.7) and out[180] == 10.0
     assert np.all(scan_with_discs(scan, angles, discs[:, 1:], 10.0, 0.5) == scan)  # too close: left out
+
+
+def test_untracked_points_leave_the_tracked_pedestrians_to_the_prediction():
+    """Points within a track's radius + pad of its centre go; the others stay, in order."""
+    points = np.array([[1.0, 0.0], [2.1, 0.0], [2.0, 0.45], [3.0, 3.0]])
+    tracks = np.array([[2.0, 0.0, 1.0, 0.0, 0.3]])
+    np.testing.assert_array_equal(untracked_points(points, tracks, 0.1), points[[0, 2, 3]])
+    np.testing.assert_array_equal(untracked_points(points, np.zeros((0, 5)), 0.1), points)
 
 
 def test_dwa_rollouts_meet_a_predicted_disc_at_its_time():
