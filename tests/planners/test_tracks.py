@@ -133,3 +133,18 @@ def test_planner_input_without_tracks_is_none():
         planner = make_planner(name, list(overrides))
         planner.reset(load_task("stage6"), np.random.default_rng(0))
         assert np.all(np.isfinite(planner.act(inp)))
+
+
+@pytest.mark.parametrize("name,overrides", [("teb", ("tracks=true",)), ("mpc_tracked", ()), ("teb", ())])
+def test_evaluation_agents_turn_the_tracker_on_only_for_planners_with_tracks(name, overrides):
+    """The evaluation's timed wrapper forwards uses_tracks: the task runs its tracker for it."""
+    from mjnav.envs.gym_env import NavGymEnv
+    from mjnav.eval.policies import load_policy
+
+    agent = load_policy(name, planner=overrides)
+    env = NavGymEnv("stage6", seed=0)
+    agent.begin(env.task, 0)
+    env.reset(options={"episode_seed": 0})
+    wanted = bool(overrides) or name == "mpc_tracked"
+    assert env.task.tracks_enabled is wanted and (env.task.tracks is not None) is wanted
+    env.close()
