@@ -618,7 +618,10 @@ def summarise(rows: Sequence[dict[str, Any]], common: dict[str, Any], seed_offse
         ``task_version``, ``commit``, ``seed_offset`` and ``planner_privileged``.
     """
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
-    return {**summary_row(summary, common["task"], common["policy"]), **aggregate_social(rows),
+    policy_name = common["policy"]
+    if (common.get("planner_params") or {}).get("tracks") is True:  # planner.tracks=true: "teb + tracks"
+        policy_name = f"{policy_name} + tracks"
+    return {**summary_row(summary, common["task"], policy_name), **aggregate_social(rows),
             "task_version": common["task_version"], "commit": common["commit"], "seed_offset": seed_offset,
             "planner_privileged": ",".join(common["planner_privileged"] or ())}
 
@@ -899,7 +902,8 @@ class EvaluateOptions:
 
     Attributes:
         policy: A run folder, ``policy.pt``, ``model_<it>.pt``, a shipped policy or a planner (mpc_goal,
-            mpc_gap, mpc_crowd, teb, dwa, random_jerk, ``package.module:Class``, ``file.py:Class``); required.
+            mpc_gap, mpc_crowd, mpc_tracked, teb, dwa, random_jerk, ``package.module:Class``,
+            ``file.py:Class``); required.
         task: Bundled stage name or task YAML path.
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.

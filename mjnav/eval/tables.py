@@ -41,7 +41,7 @@ from mjnav.eval.runner import _SPEC_KEYS, EvalSpec, evaluate, held_out_seed, pol
 from mjnav.eval.runner import read_jsonl as load_rows
 
 __all__ = ["TABLES", "Method", "Table", "format_social", "format_strata", "format_table", "load_rows",
-           "planner_method", "success_by_distance",
+           "TRACKS_SUFFIX", "planner_method", "success_by_distance",
            "table_rows", "wilson"]
 
 RULES = ("scan", "contact")
@@ -58,12 +58,15 @@ class Method:
         slug: Folder of its evaluations under ``out``; methods that evaluate the same policy share
             it (``Ours`` of Table IV is ``r_t1`` of Table III).
         paper: Stage -> the paper's (success %, time s, distance m, speed m/s[, Total Abs Acc]).
+        planner: A baseline's parameter overrides (``("tracks=true",)``), as ``planner.*`` of
+            ``mjnav evaluate``.
     """
 
     name: str
     policy: str
     slug: str
     paper: dict[str, tuple[float, ...]]
+    planner: tuple[str, ...] = ()
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,6 +80,10 @@ class Table:
 
 _OURS_CROWD = {"stage5": (87.1, 2.9, 4.59, 1.57, 26475.46), "stage6": (78.1, 2.9, 4.12, 1.42, 19507.60),
                "stage7": (68.5, 3.1, 4.22, 1.36, 6348.57)}
+
+#: Suffix of a ``planners=`` entry that runs the planner with its LiDAR tracks (``teb+tracks``:
+#: ``planner.tracks=true``), and of its row label (``teb + tracks``).
+TRACKS_SUFFIX = "+tracks"
 
 #: The paper's tables II-IV (spec §11): methods, their shipped policies, the paper's numbers.
 TABLES: dict[int, Table] = {
@@ -216,21 +223,22 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
             row: dict[str, Any] = {"stage": stage, "method": method.name, "policy": policy,
                                    "paper": method.paper.get(stage, ()), "mode": "–" if baseline else mode,
                                    "privileged": bool(baseline and planner_record(policy)["planner_privileged"])}
+            overrides = method.planner
             if not baseline and (policy is None or shipped.find(policy) is None and not Path(policy).is_file()):
                 rows.append({**row, "status": "not trained"})
                 continue
             for rule in ("contact", "scan"):  # the contact run settles most episodes of the paper's rule
                 path = evaluation_path(out, method, stage, rule, mode)
                 found = _first(load_rows(path), episodes)
-                if not _matches(found, episodes, seed_offset, policy, mode):
+                if not _matches(found, episodes, seed_offset, policy, mode, overrides):
                     if not run_missing:  # an unfinished run (resumable) shows as what it has so far
                         partial = _prefix(load_rows(path.parent / f"{stage}.jsonl"), rule, seed_offset, policy, mode,
-                                          episodes)
+                                          episodes, overrides)
                         # its Total Abs Acc, a sum, is not comparable
                         row[rule] = {**_stats(partial), "abs_acc": math.nan, "of": episodes} if partial else None
                         continue
                     spec = EvalSpec(stage, policy, episodes, seed_offset, (f"collision={rule}",), workers,
-                                    training_overrides(policy), mode)
+                                    training_overrides(policy), mode, overrides)
                     if rule == "scan":
                         contact = evaluation_path(out, method, stage, "contact", mode)
                         settle_from_contact(spec, contact, path.parent)
@@ -263,16 +271,24 @@ def _first(found: Sequence[dict[str, Any]], episodes: int) -> list[dict[str, Any
 
 def planner_method(spec: str) -> Method:
     """A planner as a table method: its display name, evaluations under ``<out>/planner_<name>/``, no
-    paper numbers.
+    paper numbers. ``SPEC+tracks`` (:data:`TRACKS_SUFFIX`) is the planner with ``planner.tracks=true``
+    (its LiDAR tracks), labelled ``<name> + tracks``, under ``<out>/planner_<name>_tracks/``.
 
     Raises:
         mjnav.planners.PlannerError, mjnav.registry.RegistryError: A spec that does not load.
+        ConfigError: ``+tracks`` for a planner without a ``tracks`` parameter.
     """
     # deferred: mjnav.planners ~0.2 s (MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
     from mjnav.planners import resolve_planner
 
-    name = resolve_planner(spec).name
-    return Method(name, spec, "planner_" + re.sub(r"[^\w.-]", "_", name), {})
+    tracked = spec.endswith(TRACKS_SUFFIX)
+    base = spec[: -len(TRACKS_SUFFIX)] if tracked else spec
+    found = resolve_planner(base)
+    slug = "planner_" + re.sub(r"[^\w.-]", "_", found.name)
+    if not tracked:
+        return Method(found.name, base, slug, {})
+    found.config(["tracks=true"])  # a planner without the parameter fails here, naming it
+    return Method(f"{found.name} + tracks", base, slug + "_tracks", {}, ("tracks=true",))
 
 
 def _method_label(row: dict[str, Any]) -> str:
@@ -302,22 +318,24 @@ def _policy_file(policy: str, action: str) -> str | None:
     return str(path.with_name(f"{path.stem.removesuffix('_policy')}_checkpoint.pt"))
 
 
-def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, policy: str, action: str) -> bool:
-    """The records are ``episodes`` episodes of this policy file (path and content), action mode and seeds."""
+def _matches(found: Sequence[dict[str, Any]], episodes: int, seed_offset: int, policy: str, action: str,
+             planner: Sequence[str] = ()) -> bool:
+    """The records are ``episodes`` episodes of this policy file (path and content), planner
+    parameters (``planner``: overrides), action mode and seeds."""
     # deferred: mjnav.eval.policies ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav tables --help`
     from mjnav.eval.policies import planner_record
 
     if len(found) != episodes:
         return False
     first = found[0]
-    return (first.get("policy_source") == policy and first.get("policy_sha256") == policy_sha256(policy)
-            and first.get("planner_sha256") == planner_record(policy)["planner_sha256"]
+    return (first.get("policy_source") == policy and first.get("policy_sha256") == policy_sha256(policy, planner)
+            and first.get("planner_sha256") == planner_record(policy, planner)["planner_sha256"]
             and first.get("action_mode", "mean") == action
             and first.get("seed") == held_out_seed(first.get("index", 0), seed_offset))
 
 
 def _prefix(found: Sequence[dict[str, Any]], rule: str, seed_offset: int, policy: str, action: str,
-            episodes: int) -> list[dict[str, Any]]:
+            episodes: int, planner: Sequence[str] = ()) -> list[dict[str, Any]]:
     """Episodes 0 .. n-1 of an unfinished evaluation under ``rule``, up to its first gap ([] if none).
 
     Workers finish chunks out of order, so a stopped run can hold later episodes past a gap; they
@@ -327,7 +345,7 @@ def _prefix(found: Sequence[dict[str, Any]], rule: str, seed_offset: int, policy
     rows: list[dict[str, Any]] = []
     while len(rows) < episodes and len(rows) in by_index:
         rows.append(by_index[len(rows)])
-    return rows if rows and _matches(rows, len(rows), seed_offset, policy, action) else []
+    return rows if rows and _matches(rows, len(rows), seed_offset, policy, action, planner) else []
 
 
 def _pct(stats: dict[str, Any] | None) -> str:

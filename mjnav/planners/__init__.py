@@ -2,11 +2,12 @@
 
 ``mpc_goal`` (convex region + MPC towards the goal), ``mpc_gap`` (the same towards open space near
 the goal direction), ``mpc_crowd`` (the same steered by the pedestrians' true motion: privileged, an
-oracle), ``teb`` (timed elastic band), ``dwa`` (dynamic window) and ``random_jerk``
-(:class:`RandomPlanner`). Set ``env.task.planner`` to one and the task uses it instead of the
-learned action layer; the episode and its scoring stay the same. numpy/scipy with numba kernels
-(TEB's band solver :mod:`mjnav.planners.trf`, DWA's clearance); every planner brakes (and counts
-it in ``stats``) instead of raising.
+oracle), ``mpc_tracked`` (the same steered by the robot's own LiDAR tracks), ``teb`` (timed
+elastic band), ``dwa`` (dynamic window) and ``random_jerk`` (:class:`RandomPlanner`). Set
+``env.task.planner`` to one and the task uses it instead of the learned action layer; the episode
+and its scoring stay the same. numpy/scipy with numba kernels (TEB's band solver
+:mod:`mjnav.planners.trf`, DWA's clearance); every planner brakes (and counts it in ``stats``)
+instead of raising.
 
 Planners are looked up by name in :data:`PLANNERS` (``policy=<name>``; ``planner.<field>=value``
 sets the fields of its config class), or given as ``policy=package.module:Class`` or
@@ -29,7 +30,8 @@ from pathlib import Path
 from mjnav.planners.base import Planner, PlannerInput
 from mjnav.planners.dwa import DwaConfig, DwaPlanner
 from mjnav.planners.mpc_crowd import MpcCrowdConfig, MpcCrowdPlanner
-from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalPlanner
+from mjnav.planners.mpc_tracked import MpcTrackedConfig, MpcTrackedPlanner
+from mjnav.planners.mpc_goal import MpcGapConfig, MpcGapPlanner, MpcGoalConfig, MpcGoalPlanner
 from mjnav.planners.random import RandomActionPolicy, RandomPlanner
 from mjnav.planners.resolve import PlannerError, PlannerSource, is_spec, resolve
 from mjnav.planners.teb import TebConfig, TebPlanner
@@ -43,7 +45,10 @@ __all__ = [
     "MpcCrowdPlanner",
     "MpcGapConfig",
     "MpcGapPlanner",
+    "MpcGoalConfig",
     "MpcGoalPlanner",
+    "MpcTrackedConfig",
+    "MpcTrackedPlanner",
     "Planner",
     "PlannerError",
     "PlannerInput",
@@ -60,9 +65,10 @@ __all__ = [
 
 #: Planners by policy name; a factory takes its config class's instance (or nothing, without one).
 PLANNERS: Registry[Planner] = Registry("planner", "mjnav.planners")
-PLANNERS.register("mpc_goal", MpcGoalPlanner, source="builtin")
+PLANNERS.register("mpc_goal", MpcGoalPlanner, config=MpcGoalConfig, source="builtin")
 PLANNERS.register("mpc_gap", MpcGapPlanner, config=MpcGapConfig, source="builtin")
 PLANNERS.register("mpc_crowd", MpcCrowdPlanner, config=MpcCrowdConfig, source="builtin")
+PLANNERS.register("mpc_tracked", MpcTrackedPlanner, config=MpcTrackedConfig, source="builtin")
 PLANNERS.register("teb", TebPlanner, config=TebConfig, source="builtin")
 PLANNERS.register("dwa", DwaPlanner, config=DwaConfig, source="builtin")
 PLANNERS.register("random_jerk", RandomPlanner, source="builtin")

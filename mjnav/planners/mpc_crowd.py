@@ -194,7 +194,7 @@ class MpcCrowdPlanner(MpcGoalPlanner):
     def __init__(self, config: MpcCrowdConfig | None = None) -> None:
         """``config``: :class:`MpcCrowdConfig` (defaults when None)."""
         self.config = config or MpcCrowdConfig()
-        super().__init__(self.config.safety)
+        super().__init__(safety=self.config.safety)
         self._inflation = 0.325
         self._reach_time = 1.0
         self.tracker = CrowdTracker()
@@ -206,15 +206,21 @@ class MpcCrowdPlanner(MpcGoalPlanner):
         self._reach_time = config.mpc.horizon * config.timing.control_period
         self.tracker.reset()
 
-    def reference(self, inp: PlannerInput, goal: np.ndarray, r_s: float) -> tuple[np.ndarray, np.ndarray, bool]:
-        """``(Q_s, Q_l, goal_inside)`` from the crowd's motion (robot frame, metres)."""
+    def crowd(self, inp: PlannerInput) -> tuple[np.ndarray, np.ndarray]:
+        """The pedestrians this step: ((P, 3) ``[x, y, r]`` relative to the robot, metres; (P, 2)
+        velocities, m/s), from the true positions and radii, velocities by differencing (every step,
+        also when the goal is inside, so the differences stay one period apart)."""
         peds = np.asarray(inp.pedestrians, dtype=np.float64).reshape(-1, 3)
         ped_velocities = self.tracker.update(inp.time, peds[:, :2])
+        return np.column_stack([peds[:, :2] - inp.position, peds[:, 2]]), ped_velocities
+
+    def reference(self, inp: PlannerInput, goal: np.ndarray, r_s: float) -> tuple[np.ndarray, np.ndarray, bool]:
+        """``(Q_s, Q_l, goal_inside)`` from the crowd's motion (robot frame, metres)."""
+        relative, ped_velocities = self.crowd(inp)
         inside = goal_inside(inp.region, goal)
         if inside:
             q_l = goal.copy()
         else:
-            relative = np.column_stack([peds[:, :2] - inp.position, peds[:, 2]])
             q_l = crowd_long_point(inp.region, goal, np.asarray(inp.velocity, dtype=np.float64), relative,
                                    ped_velocities, self._inflation, self._reach_time, self.config)
         length = float(np.hypot(*q_l))

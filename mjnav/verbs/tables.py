@@ -35,7 +35,8 @@ class TablesOptions:
         methods: Comma-separated methods to keep (names as the table prints them); empty: all.
         social: Add a table of the social-navigation metrics (:mod:`mjnav.eval.social`).
         planners: Comma-separated planners added as methods: registered names, ``package.module:Class``
-            or ``path/to/file.py:Class``; those reading ground truth are marked "(privileged)".
+            or ``path/to/file.py:Class``; those reading ground truth are marked "(privileged)";
+            ``NAME+tracks`` adds NAME with ``planner.tracks=true`` (its LiDAR tracks), row "NAME + tracks".
     """
 
     table: int = 2

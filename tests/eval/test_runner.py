@@ -160,7 +160,9 @@ def test_planner_overrides_and_tuning_scenarios(tmp_path):
     assert agent.planner.planner.config.w_clearance == 0.8
     with pytest.raises(ConfigError, match="w_clearnce"):
         load_policy("teb", planner=("w_clearnce=1",))
-    with pytest.raises(ConfigError, match="mpc_goal has no parameters"):
+    with pytest.raises(ConfigError, match="random_jerk has no parameters"):
+        load_policy("random_jerk", planner=("safety=1",))
+    with pytest.raises(ConfigError, match="safety"):  # mpc_goal's parameters are its tracks only
         load_policy("mpc_goal", planner=("safety=1",))
     assert runner.held_out_seed(0, runner.TUNING_SEED_OFFSET) > runner.held_out_seed(10**8)  # eval and dev sets
     for module in (dwa, teb, mpc_goal):

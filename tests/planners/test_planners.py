@@ -12,7 +12,7 @@ from mjnav.geometry.region import compute_region
 from mjnav.planners import PLANNERS, make_planner
 from mjnav.planners.base import PlannerInput
 
-GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "mpc_crowd", "teb", "dwa")
+GOAL_PLANNERS = ("mpc_goal", "mpc_gap", "mpc_crowd", "mpc_tracked", "teb", "dwa")
 
 
 @pytest.fixture(scope="module")
