@@ -213,7 +213,7 @@ def table_rows(table: int, out: Path, episodes: int, seed_offset: int = 0, worke
     from mjnav.eval.policies import planner_record
     from mjnav.policy import BASELINES, training_overrides
 
-    chosen = (*_chosen_methods(TABLES[table], methods), *(planner_method(p) for p in planners))
+    chosen = _chosen_methods((*TABLES[table].methods, *(planner_method(p) for p in planners)), methods)
     rows = []
     for stage in TABLES[table].stages:
         for method in chosen:
@@ -296,15 +296,15 @@ def _method_label(row: dict[str, Any]) -> str:
     return f"{row['method']} (privileged)" if row.get("privileged") else row["method"]
 
 
-def _chosen_methods(table: Table, names: Sequence[str] | None) -> tuple[Method, ...]:
-    """The table's methods named in ``names`` (all for None), in the table's order."""
+def _chosen_methods(methods: Sequence[Method], names: Sequence[str] | None) -> tuple[Method, ...]:
+    """The ``methods`` (the table's, then the added planners) named in ``names`` (all for None), in order."""
     if names is None:
-        return table.methods
-    known = [m.name for m in table.methods]
+        return tuple(methods)
+    known = [m.name for m in methods]
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ValueError(f"methods: {unknown} not in this table (known: {known})")
-    return tuple(m for m in table.methods if m.name in names)
+    return tuple(m for m in methods if m.name in names)
 
 
 def _policy_file(policy: str, action: str) -> str | None:

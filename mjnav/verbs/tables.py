@@ -32,7 +32,7 @@ class TablesOptions:
         seed_offset: Offset of the held-out episode seeds.
         run: Run the missing evaluations (false: report them as missing).
         action: ``mean``, ``expected`` or ``sample`` (how a learned policy acts).
-        methods: Comma-separated methods to keep (names as the table prints them); empty: all.
+        methods: Comma-separated methods to keep (names as the table prints them, added planners too); empty: all.
         social: Add a table of the social-navigation metrics (:mod:`mjnav.eval.social`).
         planners: Comma-separated planners added as methods: registered names, ``package.module:Class``
             or ``path/to/file.py:Class``; those reading ground truth are marked "(privileged)";

@@ -176,3 +176,12 @@ def test_success_by_distance_refuses_records_without_a_trip() -> None:
     """A record without start, goal or outcome (not the runner's JSONL) is a ValueError, not a KeyError."""
     with pytest.raises(ValueError, match="record 1"):
         tables.success_by_distance([_trip(1.0, "success"), {"outcome": "success"}])
+
+
+def test_methods_picks_an_added_planner_alone(tmp_path: Path) -> None:
+    """``methods=`` names added planners too, so one planner's evaluations can be run by themselves."""
+    rows = tables.table_rows(4, tmp_path, 5, run_missing=False, methods=["mpc_goal + tracks"],
+                             planners=["mpc_goal", "mpc_goal+tracks"])
+    assert [(r["stage"], r["method"]) for r in rows] == [(s, "mpc_goal + tracks") for s in ("stage5", "stage6", "stage7")]
+    with pytest.raises(ValueError, match="mpc_crowd"):
+        tables.table_rows(4, tmp_path, 5, run_missing=False, methods=["mpc_crowd"], planners=["mpc_goal"])
