@@ -4,6 +4,7 @@
     python experiments/imitation.py collect OUT.npz STAGES N SEED0 [STUDENT_CKPT BETA]   # (obs, target logits); DAgger if student
     python experiments/imitation.py fit OUT_DIR BASE_CKPT DATA.npz [DATA2.npz ...]       # BC of the actor -> OUT_DIR/model_0.pt
     python experiments/imitation.py student CKPT STAGE N SEED0       # success of the student (mean action)
+    python experiments/imitation.py widen OUT.pt BASE_CKPT K         # BASE for observation.tracks=K (zero columns)
 
 The teacher's Q_l is mpc_gap's; its action keeps (α_s, β_s) = (0.5, 0.3) (Q_s a little behind the
 robot, where it hardly moves the MPC, as the PPO policies do), so α_l ≈ 0.5 for a Q_l ahead: no
@@ -19,6 +20,14 @@ control period), which the student never sees; IMIT_VO overrides its MpcCrowdCon
 IMIT_CONSISTENT=w (with IMIT_TEACHER=vo, in DAgger collection) adds w·cos(candidate, the acting
 student's Q_l direction) to the teacher's score, so that among near-equal detours it labels the
 student's own (docs/results.md: no gain at w = 0.3).
+
+"Ours + tracks" (``observation.tracks=K``, :mod:`mjnav.tasks.observation`): put
+``observation.tracks=K`` in IMIT_OVERRIDES, so that the student sees the K nearest tracks of the
+robot's own LiDAR tracker (not privileged) after the 399 values, and start from ``widen``'s copy
+of a shipped checkpoint (5K zero input columns: it acts exactly as the shipped policy). The
+teacher may stay privileged (IMIT_TEACHER=vo): it labels at training time only. BC_NEW_INPUTS=399
+makes ``fit`` move only the first layer's columns 399 and up (the tracks' weights): the student is
+the base policy plus what the tracks add.
 """
 
 from __future__ import annotations
@@ -129,6 +138,21 @@ def load_student(ckpt):
     return lambda obs: net(torch.as_tensor(obs, dtype=torch.float32)[None]).detach().numpy()[0]
 
 
+def _new_columns_only(net, first: int) -> list:
+    """Freeze ``net`` except its first layer's weight columns ``first:`` (the inputs a widened
+    checkpoint added, e.g. the tracks): the fit can only add what those inputs say to the base policy."""
+    import torch
+
+    weight = next(m.weight for m in net.modules() if isinstance(m, torch.nn.Linear))
+    for p in net.parameters():
+        p.requires_grad_(False)
+    weight.requires_grad_(True)
+    mask = torch.zeros_like(weight)
+    mask[:, first:] = 1.0
+    weight.register_hook(lambda grad: grad * mask)
+    return [weight]
+
+
 def run(stage, n, seed0, act, record=None, teacher_label=False):
     env = make_env(stage)
     outcomes = {}
@@ -157,6 +181,21 @@ def main(argv):
         ckpt, stage, n, seed0 = argv[1], argv[2], int(argv[3]), int(argv[4])
         pol = load_student(ckpt)
         print(stage, run(stage, n, seed0, lambda env, obs: pol(obs)), flush=True)
+    elif mode == "widen":
+        import torch
+
+        from mjnav.tasks.observation import TRACK_FEATURES
+        from mjnav.train.runner import widen_columns
+
+        out, base, count = Path(argv[1]), argv[2], int(argv[3])
+        ckpt = torch.load(base, map_location="cpu", weights_only=False)
+        width = ckpt["actor_state_dict"]["mlp.0.weight"].shape[1]
+        for part in ("actor_state_dict", "critic_state_dict"):
+            ckpt[part] = widen_columns(ckpt[part], width, TRACK_FEATURES * count)
+        ckpt.pop("optimizer_state_dict", None)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        torch.save(ckpt, out)
+        print("wrote", out, f"({width} -> {width + TRACK_FEATURES * count} inputs)")
     elif mode == "collect":
         out, stages, n, seed0 = argv[1], argv[2].split(","), int(argv[3]), int(argv[4])
         student = load_student(argv[5]) if len(argv) > 5 else None
@@ -183,7 +222,10 @@ def main(argv):
         ckpt = torch.load(base, map_location="cpu", weights_only=False)
         net = build_actor(ckpt["actor_state_dict"], ("relu", "relu", "hardswish"))
         epochs = int(os.environ.get("BC_EPOCHS", "30"))
-        opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+        params = list(net.parameters())
+        if "BC_NEW_INPUTS" in os.environ:  # fit only the first layer's columns from this input on
+            params = _new_columns_only(net, int(os.environ["BC_NEW_INPUTS"]))
+        opt = torch.optim.Adam(params, lr=1e-3)
         sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
         torch.manual_seed(0)
         n = len(obs)

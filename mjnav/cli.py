@@ -82,17 +82,23 @@ VERBS: dict[str, Verb] = {
                      "distance": Verb("plot distance", "Success by start-goal distance of evaluation records.",
                                       "mjnav.verbs.plot:distance_grammar", "mjnav.verbs.plot:distance"),
                  }),
+    "sweep": _verb("sweep", "A grid of training runs (overrides x seeds), each evaluated; one table over seeds.",
+                   "mjnav.verbs.sweep"),
     "demo": _verb("demo", "Drive one episode with the convex-MPC planner, report it, export the world.",
                   "mjnav.verbs.demo"),
     "bench": Verb("bench", "Speed benchmarks.", subverbs={
         "throughput": _verb("bench throughput", "Environment and adapter steps/s with a per-part breakdown.",
                             "mjnav.bench.throughput"),
+        "collect": _verb("bench collect", "PPO collection steps/s for 1, 2, ... workers, with where each step goes.",
+                         "mjnav.bench.collect"),
         "crowd": _verb("bench crowd", "Pedestrian models' cost per control step and ORCA's contacts.",
                        "mjnav.bench.crowd"),
         "tracker": _verb("bench tracker", "LiDAR pedestrian tracker vs ground truth per stage.", "mjnav.bench.tracker"),
         "sim": _verb("bench sim", "NavSim build, reset and control-step times per LiDAR backend.", "mjnav.bench.sim"),
         "action_layer": _verb("bench action_layer", "Region, action mapping and MPC latencies vs the authors'.",
                               "mjnav.bench.action_layer"),
+        "evalscale": _verb("bench evalscale", "Held-out evaluation episodes/s with 1 and N workers (Ray or local).",
+                           "mjnav.bench.evalscale"),
     }),
 }
 

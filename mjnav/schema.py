@@ -457,6 +457,11 @@ class ObservationConfig:
             paper): the K nearest pedestrians' true positions, velocities and radii
             (:mod:`mjnav.tasks.privileged`), reported as ``info["critic"]`` and given to the critic,
             never to the actor. 0: off (the paper's critic sees the actor's observation).
+        tracks: K > 0 appends, after the stacked frames, the K nearest pedestrian tracks of the
+            robot's own LiDAR tracker (:mod:`mjnav.perception`; not privileged) as
+            ``[dx, dy, vx, vy, valid]`` in the observation's axes (not in the paper; "Ours +
+            tracks", :func:`mjnav.tasks.observation.tracks_block`); turning it on runs the tracker.
+            0: off (the paper's observation, bit for bit).
     """
 
     frames: int = 3
@@ -465,9 +470,11 @@ class ObservationConfig:
     frame: Literal["world", "goal"] = "world"
     history: Literal["paper", "aligned"] = "paper"
     critic_pedestrians: int = 0
+    tracks: int = 0
 
     def __post_init__(self) -> None:
         check(self.frames >= 1, "frames", "must be >= 1")
+        check(self.tracks >= 0, "tracks", "must be >= 0 (0: off)")
         check(self.critic_pedestrians >= 0, "critic_pedestrians", "must be >= 0")
         check(self.frame_stride >= 1, "frame_stride", "must be >= 1")
         check(self.frame in ("world", "goal"), "frame", "must be 'world' or 'goal'")

@@ -1,19 +1,33 @@
 """mjnav.bench.throughput (``mjnav bench throughput``): interleaved rounds and the per-part breakdown."""
 
 import numpy as np
+import pytest
 
 from mjnav.config import load_task
 from mjnav.bench import throughput
+from mjnav.jobs import usable_cores
+from mjnav.schema import ConfigError
 
 
 def _script():
     return throughput
 
 
-def test_adapter_rows_cover_one_two_and_all_cores() -> None:
+def test_adapter_rows_cover_the_worker_counts_then_processes() -> None:
     bench = _script()
-    assert [(w, main) for _, w, main in bench.adapter_rows(4)] == [(1, True), (2, True), (4, True), (4, False)]
-    assert [(w, main) for _, w, main in bench.adapter_rows(1)] == [(1, True), (2, True), (2, False)]
+    assert [(w, main) for _, w, main in bench.adapter_rows([1, 2, 4])] == [(1, True), (2, True), (4, True), (4, False)]
+    assert [(w, main) for _, w, main in bench.adapter_rows([1])] == [(1, True), (2, False)]
+
+
+def test_worker_lists() -> None:
+    """``workers=1,2,4,8,15``: counts in order, duplicates dropped, ``cores`` the usable cores; bad lists refused."""
+    parse = _script().parse_workers
+    assert parse("1,2,4,8,15", 64) == [1, 2, 4, 8, 15]
+    assert parse("1, 2,2", 64) == [1, 2]
+    assert parse("cores", 64) == [min(64, usable_cores())]
+    for bad in ("0", "1,x", "65", "", "-1"):
+        with pytest.raises(ConfigError, match="workers"):
+            parse(bad, 64)
 
 
 def _two_timed_blocks(bench) -> dict[str, float]:
@@ -44,3 +58,13 @@ def test_adapter_split_adds_up_to_the_measured_time() -> None:
     assert split["own block"] > 0.0 and split["adapter bookkeeping"] > 0.0
     assert split["wait for worker processes"] < 0.1 * split["own block"]  # no worker processes here
     assert np.isclose(sum(split.values()), vec.sums["total"] / 10)
+
+
+def test_envs_in_turn_step_every_environment() -> None:
+    """The no-adapter reference steps each of its environments once per block step."""
+    in_turn = _script().EnvsInTurn(load_task("stage1"), num_envs=3, steps=2, seed=0)
+    try:
+        assert in_turn.block() == 6
+        assert len(in_turn.envs) == 3
+    finally:
+        in_turn.close()

@@ -23,7 +23,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mjnav"
 
 #: The layer order, lowest first (see the module docstring).
 LAYERS: list[list[str]] = [
-    ["mjnav.registry", "mjnav.timing", "mjnav.resources"],
+    ["mjnav.registry", "mjnav.timing", "mjnav.resources", "mjnav.jobs"],
     ["mjnav.schema", "mjnav.args", "mjnav.shipped", "mjnav.geometry"],
     ["mjnav.control", "mjnav.perception"],
     ["mjnav.world", "mjnav.tasks", "mjnav.tasks.design", "mjnav.tasks.privileged"],

@@ -1,6 +1,6 @@
 """``mjnav bench throughput``: steps/s for 1 env and the vectorised adapter, with a per-part breakdown.
 
-    mjnav bench throughput task=stage7 [rounds=5] [steps=400] [vec_steps=10] [num_envs=64] [crowd.count=25]
+    mjnav bench throughput task=stage7 [rounds=5] [steps=400] [vec_steps=10] [num_envs=64] [workers=1,2,cores] [crowd.count=25]
 
 Prints, all from one run:
   * bare MuJoCo ``mj_step`` rate of the same compiled world (reference);
@@ -8,11 +8,15 @@ Prints, all from one run:
     Gymnasium environment's task steps (``NavEnvironment.step_task``, what the adapter runs):
     steps/s and µs per part (physics = substeps incl. pedestrians and tracking force, lidar,
     region, action mapping, MPC, reward, observation, rest = composer and wrapper overhead);
+  * ``num_envs`` such environments stepped in turn in this process without the adapter (what
+    the working set of many environments costs by itself);
   * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments (default: the training
-    default, ``train.num_envs``) with 1, 2 and all-core workers
-    (this process stepping the first block), and all-core worker processes with this process idle,
-    with where an adapter step's time goes: this process's own block, its wait for the worker
-    processes (the slower block), the adapter's bookkeeping, and the loop outside the adapter.
+    default, ``train.num_envs``) with each count of ``workers`` (default 1, 2 and all usable cores;
+    ``workers=1,2,4,8,15`` on a 16-core machine; this process stepping the first block), and as
+    many worker processes as the largest count (at least 2) with this process idle; with the
+    ratios to the first row and to one environment, and where an adapter step's time goes: this
+    process's own block, its wait for the worker processes (the slower block), the transfers
+    through the shared buffers, the adapter's bookkeeping, and the loop outside the adapter.
 
 This machine's speed drifts by up to 2x within minutes, so every configuration is built first
 and then timed in ``rounds`` rounds: each round runs one block of each configuration (``steps``
@@ -35,11 +39,13 @@ import numpy as np
 from mjnav.args import Grammar, Parsed
 from mjnav.config import TASK_SECTIONS, load_task
 from mjnav.envs.gym_env import NavGymEnv
+from mjnav.jobs import usable_cores
 from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
 from mjnav.train.config import TrainConfig
 
-__all__ = ["SingleEnv", "ThroughputOptions", "VecBench", "adapter_rows", "bare_physics", "grammar", "run"]
+__all__ = ["EnvsInTurn", "SingleEnv", "ThroughputOptions", "VecBench", "adapter_rows", "bare_physics", "grammar", "parse_workers",
+           "run"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,6 +58,7 @@ class ThroughputOptions:
         steps: Control steps per single-environment block.
         vec_steps: Adapter steps (of all environments) per adapter block.
         num_envs: Environments of the adapter (default: the training default ``train.num_envs``).
+        workers: Adapter worker counts, comma-separated, as in 1,2,4,8,15; cores is one per usable core.
         seed: Environment seed.
     """
 
@@ -60,12 +67,31 @@ class ThroughputOptions:
     steps: int = 400
     vec_steps: int = 10
     num_envs: int = TrainConfig.num_envs
+    workers: str = "1,2,cores"
     seed: int = 0
 
 
 def grammar() -> Grammar:
     """:class:`ThroughputOptions` and ``task.*`` overrides."""
     return Grammar(ThroughputOptions, ("task",), {}, TASK_SECTIONS)
+
+
+def parse_workers(text: str, num_envs: int) -> list[int]:
+    """Worker counts of a ``workers=`` list (``cores``: the usable cores), each in [1, num_envs];
+    duplicates dropped, order kept.
+
+    Raises:
+        ConfigError: Not a comma-separated list of counts in range.
+    """
+    counts = []
+    for item in str(text).split(","):
+        item = item.strip()
+        count = min(num_envs, usable_cores()) if item == "cores" else int(item) if item.isdigit() else None
+        if count is None or not 1 <= count <= num_envs:
+            raise ConfigError(f"workers: expected comma-separated counts in [1, num_envs={num_envs}] or 'cores', "
+                              f"got {text!r}")
+        counts.append(count)
+    return list(dict.fromkeys(counts))
 
 
 def bare_physics(env: NavGymEnv, steps: int) -> Block:
@@ -125,6 +151,31 @@ class SingleEnv:
         return parts
 
 
+class EnvsInTurn:
+    """``num_envs`` Gymnasium environments (task steps) stepped in turn in this process, no adapter."""
+
+    def __init__(self, config, num_envs: int, steps: int, seed: int) -> None:
+        self.envs = [NavGymEnv(config) for _ in range(num_envs)]
+        for i, env in enumerate(self.envs):
+            env.reset(seed=seed + i)
+        self.steps, self.rng = steps, np.random.default_rng(seed)
+        self.block()  # warm-up
+
+    def block(self) -> int:
+        """``steps`` random-action steps of every environment (finished episodes are reset)."""
+        for _ in range(self.steps):
+            for env, action in zip(self.envs, self.rng.normal(size=(len(self.envs), 4)).astype(np.float32), strict=True):
+                _, _, term, trunc, _ = env.step(action)
+                if term or trunc:
+                    env.reset()
+        return self.steps * len(self.envs)
+
+    def close(self) -> None:
+        """Close every environment."""
+        for env in self.envs:
+            env.close()
+
+
 class VecBench:
     """The rsl-rl adapter with random actions; accumulates where its steps' time goes."""
 
@@ -141,7 +192,7 @@ class VecBench:
                              max_episode_length=config.timing.episode_steps, step_in_main=step_in_main)
         self.steps, self.num_envs = steps, num_envs
         self.gen = torch.Generator().manual_seed(seed)
-        self.sums = dict.fromkeys(("own", "wait", "step", "total"), 0.0)  # ms over timed blocks
+        self.sums = dict.fromkeys(("own", "wait", "transfer", "step", "total"), 0.0)  # ms over timed blocks
         self.total_steps = 0
         try:
             self.block()  # warm-up
@@ -160,23 +211,27 @@ class VecBench:
             log = self.env.step(torch.randn(self.num_envs, 4, generator=self.gen))[3]["log"]
             sums["own"] += log["perf/own_block_ms"]
             sums["wait"] += log["perf/wait_ms"]
+            sums["transfer"] += log["perf/transfer_ms"]
             sums["step"] += log["perf/env_step_ms"]
         sums["total"] += 1e3 * (time.perf_counter() - start)
         self.total_steps += self.steps
         return self.steps * self.num_envs
 
     def parts(self) -> dict[str, float]:
-        """ms per adapter step: own block, wait for the worker processes, bookkeeping, outside the adapter."""
+        """ms per adapter step: own block, wait for the worker processes, transfers through the
+        shared buffers, bookkeeping, outside the adapter."""
         s, n = self.sums, max(self.total_steps, 1)
         return {"own block": s["own"] / n, "wait for worker processes": s["wait"] / n,
-                "adapter bookkeeping": (s["step"] - s["own"] - s["wait"]) / n,
+                "transfers": s["transfer"] / n,
+                "adapter bookkeeping": (s["step"] - s["own"] - s["wait"] - s["transfer"]) / n,
                 "outside the adapter (random actions)": (s["total"] - s["step"]) / n}
 
 
-def adapter_rows(cores: int) -> list[tuple[str, int, bool]]:
-    """(label, workers, step_in_main) of the adapter configurations: 1, 2, all cores, all processes."""
-    rows = [(f"{w} worker{'s' if w > 1 else ''}", w, True) for w in sorted({1, 2, cores})]
-    procs = max(2, cores)
+def adapter_rows(counts: list[int]) -> list[tuple[str, int, bool]]:
+    """(label, workers, step_in_main) of the adapter configurations: each count with this process
+    stepping the first block, then as many worker processes as the largest count (at least 2)."""
+    rows = [(f"{w} worker{'s' if w > 1 else ''}", w, True) for w in counts]
+    procs = max(2, *counts)
     return [*rows, (f"{procs} worker processes (this process waits)", procs, False)]
 
 
@@ -187,6 +242,7 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         if opts.rounds < 1:
             raise ConfigError(f"rounds must be >= 1, got {opts.rounds}")
         config = load_task(opts.task, list(parsed.task))
+        parse_workers(opts.workers, opts.num_envs)
     except ConfigError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -204,7 +260,10 @@ def bench(config, opts: ThroughputOptions) -> None:
     closers = [single.env.close for single in singles.values()]
     vecs: dict[str, VecBench] = {}
     try:
-        for label, workers, in_main in adapter_rows(os.cpu_count() or 1):
+        in_turn = EnvsInTurn(config, num_envs, opts.vec_steps, seed)
+        blocks["in turn"] = in_turn.block
+        closers.append(in_turn.close)
+        for label, workers, in_main in adapter_rows(parse_workers(opts.workers, num_envs)):
             vecs[label] = VecBench(config, num_envs, workers, opts.vec_steps, seed, in_main)
             blocks[label] = vecs[label].block
             closers.append(vecs[label].env.close)
@@ -226,6 +285,7 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     bare = rates.pop("bare")
     periods = np.median(bare) / substeps  # control periods/s of bare physics
     singles = {name: rates.pop(f"single {name}") for name in parts}
+    in_turn = rates.pop("in turn")
 
     def spread(values: np.ndarray) -> str:
         return f"{np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f})"
@@ -240,6 +300,9 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     for name, values in singles.items():
         print(f"| {_SINGLE_LABELS[name]} | {spread(values)} | {1e6 / np.median(values):.0f} | "
               f"{np.median(values) / periods:.3f} |")
+    print(f"| {num_envs} such environments in turn, this process, no adapter "
+          f"(x {np.median(in_turn) / np.median(singles['task']):.2f} one environment) | {spread(in_turn)} | "
+          f"{1e6 / np.median(in_turn):.0f} | {np.median(in_turn) / periods:.3f} |")
     names = list(parts)
     print("\n| part (us/step) | " + " | ".join(_SINGLE_LABELS[n] for n in names) + " |")
     print("|---|" + "---|" * len(names))
@@ -247,9 +310,13 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     for part in parts[names[0]]:
         cells = " | ".join(f"{parts[n][part]:.1f} ({parts[n][part] / totals[n]:.0%})" for n in names)
         print(f"| {part} | {cells} |")
-    print(f"\n| adapter: {num_envs} envs | env steps/s | x bare physics periods |\n|---|---|---|")
+    first_label = next(iter(rates))
+    first, one = np.median(rates[first_label]), np.median(singles["task"])
+    print(f"\n| adapter: {num_envs} envs | env steps/s | x {first_label} | x one environment (task steps) | "
+          f"x bare physics periods |\n|---|---|---|---|---|")
     for label, values in rates.items():
-        print(f"| {label} | {spread(values)} | {np.median(values) / periods:.3f} |")
+        rate = np.median(values)
+        print(f"| {label} | {spread(values)} | {rate / first:.2f} | {rate / one:.2f} | {rate / periods:.3f} |")
 
 
 def _print_split(splits: dict[str, dict[str, float]]) -> None:

@@ -33,7 +33,9 @@ Observation, ``Box(low, high, (size,), float32)`` with the bounds of :func:`obse
     ``observation.frame=goal``); region flag ∈ [0, 1]; (|Q| + R_inf)/10 ∈
     [R_inf/10, (D + R_inf)/10] with D the larger of ``lidar.max_range`` (a region and its
     points lie within the scan) and the MPC's kinematic reach √2·v_max·horizon·t_c (a plan
-    without a region constraint). The v1 observation is clipped to these bounds, which changes
+    without a region constraint); with ``observation.tracks=K`` the tracks' scaled offsets and
+    velocities ∈ [−1, 1] (clipped there already) and their valid flags ∈ [0, 1]. The v1
+    observation is clipped to these bounds, which changes
     nothing in free motion: only the step in which a contact ends the episode may push the
     robot's velocity beyond v_max.
 
@@ -101,13 +103,16 @@ def observation_bounds(config: TaskConfig) -> tuple[np.ndarray, np.ndarray]:
 
     Returns:
         (low, high), each of length ``observation_size``: polygon blocks in [0, 1], then each
-        frame's state values (the design's columns) bounded by :func:`_state_bounds`.
+        frame's state values (the design's columns) bounded by :func:`_state_bounds`, then with
+        ``observation.tracks=K`` K tracks' ``[dx, dy, vx, vy]`` in [-1, 1] and valid in [0, 1].
     """
     design = get_design(config.design)
     frames, points = config.observation.frames, config.region.num_points
     state_low, state_high = (b[list(design.state_columns)] for b in _state_bounds(config))
-    low = np.concatenate([np.zeros(frames * 2 * points), np.tile(state_low, frames)])
-    high = np.concatenate([np.ones(frames * 2 * points), np.tile(state_high, frames)])
+    tracks = config.observation.tracks  # [dx, dy, vx, vy] clipped to [-1, 1], valid in [0, 1]
+    low = np.concatenate([np.zeros(frames * 2 * points), np.tile(state_low, frames),
+                          np.tile([-1.0, -1.0, -1.0, -1.0, 0.0], tracks)])
+    high = np.concatenate([np.ones(frames * 2 * points), np.tile(state_high, frames), np.ones(5 * tracks)])
     return low.astype(np.float32), high.astype(np.float32)
 
 

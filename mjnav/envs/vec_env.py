@@ -16,8 +16,14 @@ rsl-rl's logger writes them unchanged (no ``Episode/`` prefix): ``episode/<metri
 per episode finished at this step, ``reward/<term>`` the per-step mean over all environments,
 ``mpc/<stat>`` one value per reporting environment, ``perf/env_step_ms`` the step's wall time,
 ``perf/own_block_ms`` the part of it this process spent stepping its own block (0 when it steps
-none) and ``perf/wait_ms`` the part it then waited for the worker processes; the rest of a step
-is the adapter's own bookkeeping.
+none), ``perf/wait_ms`` the part it then waited for the worker processes and
+``perf/transfer_ms`` the part spent moving actions into and observations, rewards and flags out
+of the shared buffers (with the tensors made of them) and sending the step command down the pipes; the rest of a step is the adapter's own
+bookkeeping (episode clock, logs). ``perf/worker_step_ms`` and ``perf/worker_step_max_ms`` are
+the mean and the longest time the worker processes took to step their blocks, timed inside them
+(0 without worker processes): ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency;
+``perf/worker_cpu_max_ms`` is the largest CPU time among them (without the time spent waiting for
+a core on a shared machine).
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
@@ -52,6 +58,30 @@ from mjnav.envs.workers import (
 
 __all__ = ["OUTCOMES", "EnvError", "NavVecEnv"]
 
+def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range]:
+    """Contiguous blocks of environment indices, one per worker (one block for ``workers`` <= 1).
+
+    Args:
+        num_envs: Number of environments N.
+        workers: Workers W.
+        first: Size of the first block with W >= 2 (the others share the rest evenly); None:
+            even blocks. Ignored with fewer than 2 workers (one block).
+
+    Raises:
+        ValueError: ``first`` leaves a block empty (it must be in [1, N - W + 1]).
+    """
+    count = max(1, workers)
+    if first is None or count == 1:
+        sizes = [len(b) for b in np.array_split(np.arange(num_envs), count)]
+    elif 1 <= first <= num_envs - count + 1:
+        sizes = [first, *(len(b) for b in np.array_split(np.arange(num_envs - first), count - 1))]
+    else:
+        raise ValueError(f"main_envs must be in [1, {num_envs - count + 1}] with {num_envs} environments "
+                         f"on {workers} workers, got {first}")
+    ends = np.cumsum(sizes)
+    return [range(int(end - size), int(end)) for size, end in zip(sizes, ends, strict=True)]
+
+
 class NavVecEnv(VecEnv):
     """``num_envs`` gymnasium environments behind rsl-rl's :class:`~rsl_rl.env.VecEnv` interface.
 
@@ -67,6 +97,7 @@ class NavVecEnv(VecEnv):
         cfg: Dictionary stored by rsl-rl's logger (task config and adapter settings).
         workers: Workers stepping environments in parallel, this process included when
             ``step_in_main`` (0: all in this process).
+        blocks: The environment indices of each worker, this process's first when ``step_in_main``.
     """
 
     def __init__(
@@ -82,6 +113,7 @@ class NavVecEnv(VecEnv):
         start_timeout_s: float = 600.0,
         cfg: dict | None = None,
         step_in_main: bool = True,
+        main_envs: int | None = None,
     ) -> None:
         """Start the workers, build and reset the environments.
 
@@ -99,6 +131,10 @@ class NavVecEnv(VecEnv):
             cfg: Extra configuration to expose as ``self.cfg``.
             step_in_main: This process is worker 0 (W - 1 worker processes); False: W worker
                 processes and this process only waits.
+            main_envs: With ``step_in_main`` and W >= 2: the environments this process steps
+                itself (the first block; the worker processes share the rest evenly). None: an even
+                share; ignored with W < 2. Fewer leave it time for its own per-step work (the policy, the adapter's
+                bookkeeping) while the worker processes step; rollouts do not depend on it.
 
         Raises:
             EnvError: A worker failed to start or to build an environment (with its traceback).
@@ -111,11 +147,15 @@ class NavVecEnv(VecEnv):
             raise ValueError(f"workers must be in [0, num_envs={num_envs}], got {self.workers}")
         self.num_envs, self.seed, self.device = num_envs, seed, torch.device(device)
         self.step_in_main = step_in_main
+        if main_envs is not None and not step_in_main:
+            raise ValueError("main_envs needs step_in_main=True (this process steps the first block)")
+        self.blocks = _blocks(num_envs, self.workers, main_envs)
         self.step_timeout_s = step_timeout_s
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
         self._closed = False
-        self._split = (0.0, 0.0)  # seconds of the last call: own block, wait for the worker processes
+        self._split = (0.0, 0.0, 0.0)  # seconds of the last call: own block, wait, sending the command
+        self._remote = 0  # worker processes (the first handles)
         try:
             self._start(env_fn, start_method, start_timeout_s, max_episode_length)
         except BaseException:
@@ -130,16 +170,14 @@ class NavVecEnv(VecEnv):
         }
 
     def _start(self, env_fn: EnvFn, start_method: str, timeout: float, limit: int | None) -> None:
-        blocks = [
-            range(int(b[0]), int(b[-1]) + 1)
-            for b in np.array_split(np.arange(self.num_envs), max(1, self.workers))
-        ]
+        blocks = self.blocks
         local = self.workers == 0 or self.step_in_main
         remote = blocks[1:] if local else blocks
         if remote:
             ctx = _context(start_method)
             first = len(blocks) - len(remote)
             self._handles = [_WorkerHandle(ctx, env_fn, b, self.seed, first + k) for k, b in enumerate(remote)]
+            self._remote = len(self._handles)
         if local:  # last, so the worker processes get each command before this process steps
             self._handles.append(_LocalHandle(env_fn, blocks[0], self.seed))
         described = [h.result(timeout) for h in self._handles]
@@ -179,10 +217,12 @@ class NavVecEnv(VecEnv):
         """Send ``command`` to every worker, then collect the replies; close everything on failure.
 
         Notes in ``_split`` the seconds this process spent on its own block (the last handle, when
-        local; 0 otherwise) and the seconds it then waited for the replies.
+        local; 0 otherwise), the seconds it then waited for the replies and the seconds it took to
+        send the command to the worker processes.
         """
         try:
             *others, last = self._handles
+            begin = time.perf_counter()
             for handle in others:
                 handle.request(command, arg)
             start = time.perf_counter()
@@ -190,7 +230,7 @@ class NavVecEnv(VecEnv):
             ready = time.perf_counter()
             replies = [handle.result(self.step_timeout_s) for handle in self._handles]
             own = ready - start if isinstance(last, _LocalHandle) else 0.0
-            self._split = (own, time.perf_counter() - ready)
+            self._split = (own, time.perf_counter() - ready, start - begin)
             return replies
         except BaseException:
             self.close()
@@ -236,26 +276,41 @@ class NavVecEnv(VecEnv):
         self._write_actions(actions)
         lengths = self.episode_length_buf.cpu().numpy() + 1
         self._buf["force"][:] = lengths >= self.max_episode_length
+        sent = time.perf_counter()
         replies = self._call("step")
+        received = time.perf_counter()
         buf = self._buf
         rewards, outcome = buf["rewards"].copy(), buf["outcome"].copy()
         terminated, truncated = buf["terminated"].copy(), buf["truncated"].copy()
         done = terminated | truncated
         self._read_observations()
+        read = time.perf_counter()
         self._returns += rewards
         self._steps += 1
         log = self._log(done, outcome, replies)
         self._returns[done], self._steps[done] = 0.0, 0
         self.episode_length_buf = torch.from_numpy(np.where(done, 0, lengths)).to(self.device)
-        log["perf/env_step_ms"] = 1e3 * (time.perf_counter() - start)
-        log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
+        packed = time.perf_counter()
         extras = {
             "time_outs": torch.from_numpy(truncated).to(self.device),
             "outcomes": torch.from_numpy(outcome).to(self.device),
             "log": log,
         }
         dones = torch.from_numpy(done.astype(np.int64)).to(self.device)
-        return self.get_observations(), torch.from_numpy(rewards).to(self.device), dones, extras
+        result = self.get_observations(), torch.from_numpy(rewards).to(self.device), dones, extras
+        end = time.perf_counter()
+        self._log_times(log, replies, start, end, (sent - start) + (read - received) + (end - packed))
+        return result
+
+    def _log_times(self, log: dict[str, Any], replies: list[tuple], start: float, end: float, transfer: float) -> None:
+        """The ``perf/*`` entries of one step (module docstring), in milliseconds."""
+        busy = [reply[3] for reply in replies[: self._remote]]
+        log["perf/env_step_ms"] = 1e3 * (end - start)
+        log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
+        log["perf/transfer_ms"] = 1e3 * (transfer + self._split[2])
+        log["perf/worker_step_ms"] = 1e3 * sum(busy) / len(busy) if busy else 0.0
+        log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
+        log["perf/worker_cpu_max_ms"] = 1e3 * max((reply[4] for reply in replies[: self._remote]), default=0.0)
 
     def _write_actions(self, actions: torch.Tensor) -> None:
         values = actions.detach().to("cpu", torch.float32).numpy()
@@ -279,7 +334,7 @@ class NavVecEnv(VecEnv):
             log["episode/length"] = torch.from_numpy(self._steps[done].astype(np.float32))
             log["episode/return"] = torch.from_numpy(self._returns[done].astype(np.float32))
         terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
-        for reply_terms, reply_sum, reply_count in replies:
+        for reply_terms, reply_sum, reply_count, *_ in replies:
             terms.update(reply_terms)
             mpc_sum.update(reply_sum)
             mpc_count.update(reply_count)

@@ -12,6 +12,7 @@ import contextlib
 import multiprocessing as mp
 import os
 import signal
+import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -23,6 +24,8 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+
+from mjnav.jobs import usable_cores
 
 __all__ = ["OUTCOMES", "EnvError", "usable_cores"]
 
@@ -99,12 +102,15 @@ class _EnvGroup:
         self._seeded = True
         self.buf["outcome"][self.indices.start : self.indices.stop] = 0
 
-    def step(self) -> tuple[Counter, Counter, Counter]:
+    def step(self) -> tuple[Counter, Counter, Counter, float, float]:
         """Step every environment with the shared actions; auto-reset finished ones.
 
         Returns:
-            Sums over this group of the reward terms, sums and counts of the MPC statistics.
+            Sums over this group of the reward terms, sums and counts of the MPC statistics, and
+            the wall-clock and CPU seconds of this call (measured where it runs; the CPU time
+            leaves out the time the process waited for a core on a shared machine).
         """
+        start, cpu = time.perf_counter(), time.thread_time()
         terms: dict[str, float] = {}
         mpc_sum: dict[str, float] = {}
         mpc_count: dict[str, int] = {}
@@ -130,7 +136,7 @@ class _EnvGroup:
             except Exception as exc:
                 _blame(exc, i)
                 raise
-        return Counter(terms), Counter(mpc_sum), Counter(mpc_count)
+        return Counter(terms), Counter(mpc_sum), Counter(mpc_count), time.perf_counter() - start, time.thread_time() - cpu
 
     def close(self) -> None:
         """Close every environment."""
@@ -285,11 +291,6 @@ def _context(start_method: str) -> Any:
         with _worker_environment():
             forkserver.ensure_running()
     return ctx
-
-
-def usable_cores() -> int:
-    """CPU cores this process may run on (its affinity mask where the OS has one)."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _default_workers(num_envs: int) -> int:

@@ -18,6 +18,12 @@ the end the file is rewritten sorted by index, every record kept, atomically (te
 fsync, ``os.replace``). A smaller ``episodes=`` summarises the first episodes and keeps the rest.
 A file holding another evaluation's episodes (other commit, overrides, policy version, seeds) is
 never deleted or rewritten: the evaluation stops with an :class:`EvalError` naming the difference.
+
+Scaling out: ``shard=i/n`` runs only the episodes whose index is ``i`` modulo ``n`` (same seeds as
+the whole evaluation) into ``<task>.shard-i-of-n.jsonl`` and ``summary.shard-i-of-n.csv``/``.md``,
+so jobs of an array can share one folder; :mod:`mjnav.eval.shards` merges the files into the whole
+evaluation's. ``backend=ray`` runs the episodes as Ray tasks (:data:`BACKENDS`) instead of local
+processes, with the same records, episode for episode.
 """
 
 from __future__ import annotations
@@ -31,7 +37,7 @@ import os
 import subprocess
 import sys
 import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -47,10 +53,12 @@ from mjnav.eval.metrics import (
 )
 from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
+from mjnav.jobs import usable_cores
 from mjnav import shipped
 from mjnav.schema import ConfigError
 
 __all__ = [
+    "BACKENDS",
     "EvaluateOptions",
     "grammar",
     "HELD_OUT_BASE",
@@ -62,11 +70,15 @@ __all__ = [
     "evaluate_tasks",
     "git_commit",
     "held_out_seed",
+    "jsonl_name",
+    "parse_shard",
     "policy_sha256",
     "read_jsonl",
     "run_episode",
     "seed_paper_rule",
     "settle_from_contact",
+    "summarise",
+    "write_summaries",
 ]
 
 if TYPE_CHECKING:
@@ -110,6 +122,10 @@ class EvalSpec:
         action: ``mean``, ``expected`` or ``sample`` (:func:`mjnav.eval.policies.load_policy`).
         planner: Parameter overrides of a baseline planner (``["w_clearance=0.8"]``, from
             ``planner.w_clearance=0.8`` on the command line).
+        shard: ``(i, n)``: evaluate only the episodes whose index is ``i`` modulo ``n`` (``(0, 1)``: all).
+        backend: Where the episodes run: a key of :data:`BACKENDS` (``local`` processes or ``ray`` tasks).
+        address: The Ray cluster to join (``ray.init(address=...)``); None starts a local Ray with
+            ``workers`` CPUs.
     """
 
     task: str
@@ -121,11 +137,55 @@ class EvalSpec:
     policy_overrides: tuple[str, ...] = ()
     action: str = "mean"
     planner: tuple[str, ...] = ()
+    shard: tuple[int, int] = (0, 1)
+    backend: str = "local"
+    address: str | None = None
 
     @property
     def task_overrides(self) -> list[str]:
         """The overrides the environment is built with: the policy's, then this evaluation's."""
         return [*self.policy_overrides, *self.overrides]
+
+    @property
+    def indices(self) -> list[int]:
+        """The episode indices this evaluation (its shard) plays, ascending."""
+        first, count = self.shard
+        return list(range(first, self.episodes, count))
+
+    @property
+    def setup(self) -> tuple[Any, ...]:
+        """What a worker's environment and agent are built from (not which episodes it plays)."""
+        return self.task, tuple(self.task_overrides), self.policy, self.action, self.planner
+
+    def in_shard(self, index: int) -> bool:
+        """Whether episode ``index`` belongs to this evaluation's shard."""
+        return index % self.shard[1] == self.shard[0]
+
+
+def parse_shard(text: str) -> tuple[int, int]:
+    """``"i/n"`` → ``(i, n)`` with 0 <= i < n.
+
+    Raises:
+        ValueError: Not of that form (the message shows it).
+    """
+    first, sep, count = text.partition("/")
+    try:
+        shard = (int(first), int(count)) if sep else None
+    except ValueError:
+        shard = None
+    if shard is None or not 0 <= shard[0] < shard[1]:
+        raise ValueError(f"shard: expected i/n with 0 <= i < n (shard=0/4), got {text!r}")
+    return shard
+
+
+def shard_suffix(shard: tuple[int, int]) -> str:
+    """``.shard-i-of-n`` in the names of a shard's files; empty for the whole evaluation."""
+    return "" if shard[1] == 1 else f".shard-{shard[0]}-of-{shard[1]}"
+
+
+def jsonl_name(task: str, shard: tuple[int, int] = (0, 1)) -> str:
+    """The JSONL file name of ``task`` (of one shard: ``stage5.shard-0-of-4.jsonl``)."""
+    return f"{task}{shard_suffix(shard)}.jsonl"
 
 
 @dataclasses.dataclass
@@ -408,23 +468,97 @@ def _work(index: int) -> dict[str, Any]:
 
 
 def _results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
+    """The records of episodes ``indices`` as they finish (any order), run by ``spec.backend``."""
     if not indices:
         return
+    if spec.backend not in BACKENDS:
+        raise EvalError(f"backend: unknown {spec.backend!r} (known: {', '.join(BACKENDS)})")
+    yield from BACKENDS[spec.backend](spec, indices)
+
+
+def _check_policy(spec: EvalSpec) -> None:
+    """Load the policy here, so a bad one fails in seconds, before any worker starts."""
+    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
+    from mjnav.eval.policies import load_policy
+
+    try:
+        load_policy(spec.policy, mode=spec.action, planner=spec.planner)
+    except (ValueError, ConfigError) as err:
+        raise EvalError(str(err)) from err
+
+
+def _local_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
+    """Episodes in this process (``workers`` <= 1) or a pool of ``workers`` spawned processes."""
     if spec.workers <= 1:
         _init_worker(spec)
         yield from map(_work, indices)
         return
-    # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
-    from mjnav.eval.policies import load_policy
-
-    try:  # a bad policy fails here, in seconds, before any worker starts
-        load_policy(spec.policy, mode=spec.action, planner=spec.planner)
-    except (ValueError, ConfigError) as err:
-        raise EvalError(str(err)) from err
+    _check_policy(spec)
     ctx = mp.get_context("spawn")
     with ctx.Pool(spec.workers, initializer=_init_worker, initargs=(spec,)) as pool:
         chunk = max(1, min(8, len(indices) // (4 * spec.workers)))
         yield from pool.imap_unordered(_work, indices, chunksize=chunk)
+
+
+def _run_chunk(spec: EvalSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
+    """One Ray task: episodes ``indices`` in this worker process.
+
+    Ray reuses a worker process for many tasks, so the environment and policy are built by the
+    first task the process runs and kept for the next ones (:data:`_WORKER`), also across
+    evaluations that differ only in their episodes (:attr:`EvalSpec.setup`).
+    """
+    previous = _WORKER.get("spec")
+    if previous is None or previous.setup != spec.setup or "error" in _WORKER:
+        _init_worker(spec)
+    _WORKER["spec"] = spec
+    return [_work(index) for index in indices]
+
+
+def _chunks(indices: Sequence[int], workers: int) -> list[list[int]]:
+    """``indices`` cut into about four consecutive chunks per worker (a slow chunk is not the last one
+    to start), each at least one episode."""
+    size = max(1, math.ceil(len(indices) / (4 * max(1, workers))))
+    return [list(indices[k:k + size]) for k in range(0, len(indices), size)]
+
+
+def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
+    """Episodes as Ray tasks of :func:`_run_chunk`, yielded chunk by chunk as they finish.
+
+    Joins the running Ray if this process already called ``ray.init`` (a benchmark times the
+    evaluation alone), else starts one (``spec.address``'s cluster, or a local Ray with ``workers``
+    CPUs and no dashboard) and shuts it down at the end.
+    """
+    try:
+        import ray  # deferred: an optional extra (pip install mjnav[ray]), only for backend=ray
+    except ImportError:
+        raise EvalError("backend=ray needs Ray: pip install 'mjnav[ray]'") from None
+    _check_policy(spec)
+    started = not ray.is_initialized()
+    if started:
+        if spec.address is not None:
+            ray.init(address=spec.address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=max(1, spec.workers), include_dashboard=False, log_to_driver=False)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(_run_chunk)
+        pending = [task.remote(spec, chunk) for chunk in _chunks(indices, spec.workers)]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            try:
+                yield from ray.get(done[0])
+            except ray.exceptions.RayTaskError as err:
+                raise EvalError(f"Ray task failed: {err.cause if err.cause is not None else err}") from None
+    finally:
+        if started:
+            ray.shutdown()
+
+
+#: Where the episodes of an evaluation run: ``backend=NAME`` → ``results(spec, indices)``, the
+#: records of those episodes as they finish. Every backend gives the same record per episode.
+BACKENDS: dict[str, Callable[[EvalSpec, Sequence[int]], Iterator[dict[str, Any]]]] = {
+    "local": _local_results,
+    "ray": _ray_results,
+}
 
 
 def _progress(items: Iterator, total: int, label: str) -> Iterator:
@@ -459,25 +593,36 @@ def evaluate(spec: EvalSpec, out_dir: str | Path | None = None, progress: bool =
             changed; :func:`_resumable`).
     """
     common = _common(spec)
-    task, policy_name, commit = common["task"], common["policy"], common["commit"]
-    path = None if out_dir is None else Path(out_dir) / f"{task}.jsonl"
+    task, policy_name = common["task"], common["policy"]
+    path = None if out_dir is None else Path(out_dir) / jsonl_name(task, spec.shard)
     done = _resumable(path, common, spec) if path is not None else {}
-    todo = [i for i in range(spec.episodes) if i not in done]
+    todo = [i for i in spec.indices if i not in done]
     if done and progress:
-        print(f"{path}: {len(done)} of {spec.episodes} episodes already there, running {len(todo)}",
+        print(f"{path}: {len(done)} of {len(spec.indices)} episodes already there, running {len(todo)}",
               file=sys.stderr, flush=True)
     stream = _results(spec, todo)
     if progress:
-        stream = _progress(stream, len(todo), f"{task}/{policy_name}")
+        stream = _progress(stream, len(todo), f"{task}/{policy_name}{shard_suffix(spec.shard)}")
     rows = [*done.values(), *(stream if path is None else _append(path, common, stream))]
     rows.sort(key=lambda r: r["index"])
     if path is not None:
         _rewrite_sorted(path)
+    return summarise(rows, common, spec.seed_offset)
+
+
+def summarise(rows: Sequence[dict[str, Any]], common: dict[str, Any], seed_offset: int) -> dict[str, Any]:
+    """The summary row of an evaluation's episode records (sorted by index) and shared fields ``common``.
+
+    Returns:
+        :func:`mjnav.eval.metrics.summary_row`, the social metrics' :func:`mjnav.eval.social.aggregate_social`,
+        ``task_version``, ``commit``, ``seed_offset`` and ``planner_privileged``.
+    """
     summary = aggregate([EpisodeMetrics.from_dict(r["metrics"]) for r in rows])
+    policy_name = common["policy"]
     if (common.get("planner_params") or {}).get("tracks") is True:  # planner.tracks=true: "teb + tracks"
         policy_name = f"{policy_name} + tracks"
-    return {**summary_row(summary, task, policy_name), **aggregate_social(rows),
-            "task_version": common["task_version"], "commit": commit, "seed_offset": spec.seed_offset,
+    return {**summary_row(summary, common["task"], policy_name), **aggregate_social(rows),
+            "task_version": common["task_version"], "commit": common["commit"], "seed_offset": seed_offset,
             "planner_privileged": ",".join(common["planner_privileged"] or ())}
 
 
@@ -495,7 +640,12 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
             "commit": git_commit(), "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
             "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner),
-            **planner_record(spec.policy, spec.planner)}
+            **planner_record(spec.policy, spec.planner), **_shard_field(spec.shard)}
+
+
+def _shard_field(shard: tuple[int, int]) -> dict[str, str]:
+    """``{"shard": "i/n"}`` in the records of a shard (last, so a merge drops it); nothing for a whole evaluation."""
+    return {} if shard[1] == 1 else {"shard": f"{shard[0]}/{shard[1]}"}
 
 
 def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Path) -> int:
@@ -522,11 +672,12 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
                 and all(record.get(k) == common[k] for k in _SPEC_KEYS if k != "overrides"))
         if not same:
             return 0
-        if paper is not None and index < spec.episodes and record.get("seed") == held_out_seed(index, spec.seed_offset):
+        if (paper is not None and index < spec.episodes and spec.in_shard(index)
+                and record.get("seed") == held_out_seed(index, spec.seed_offset)):
             derived.append({**common, "index": index, "seed": record["seed"], **paper, "start": record.get("start"),
                             "goal": record.get("goal"), "derived_from": "contact"})
     if derived:
-        with _open_for_append(Path(out_dir) / f"{common['task']}.jsonl") as f:
+        with _open_for_append(Path(out_dir) / jsonl_name(common["task"], spec.shard)) as f:
             f.writelines(json.dumps(r) + "\n" for r in derived)
     return len(derived)
 
@@ -547,16 +698,17 @@ def settle_from_contact(spec: EvalSpec, contact: str | Path, out_dir: str | Path
     common = _common(spec)
     if common["collision"] != "scan":
         raise EvalError(f"from_contact: the evaluation must use task.collision=scan, got {common['collision']!r}")
-    path = Path(out_dir) / f"{common['task']}.jsonl"
+    path = Path(out_dir) / jsonl_name(common["task"], spec.shard)
     done = _resumable(path, common, spec)
     contact = Path(contact)
     if contact.is_dir():
         contact = contact / f"{common['task']}.jsonl"
-    settled = seed_paper_rule(contact, spec, out_dir) if len(done) < spec.episodes else 0
+    wanted = len(spec.indices)
+    settled = seed_paper_rule(contact, spec, out_dir) if len(done) < wanted else 0
     if report:
-        why = "" if settled or len(done) == spec.episodes else (
+        why = "" if settled or len(done) == wanted else (
             " (missing, or not a contact run of this policy, seeds, overrides and code commit)")
-        print(f"{path}: {settled} of {spec.episodes} episodes settled by {contact}{why}", file=sys.stderr, flush=True)
+        print(f"{path}: {settled} of {wanted} episodes settled by {contact}{why}", file=sys.stderr, flush=True)
     return settled
 
 
@@ -695,17 +847,20 @@ def _resumable(path: Path, common: dict[str, Any], spec: EvalSpec) -> dict[int, 
         if differ:
             raise EvalError(f"{path} holds episodes of another evaluation ({'; '.join(differ)}); it is left "
                             f"as it is: write this evaluation elsewhere with out=DIR, or move that file away")
-        if index < spec.episodes:
+        if index < spec.episodes:  # in this shard (_differences)
             kept.setdefault(index, record)
     return kept
 
 
 def _differences(record: dict[str, Any], common: dict[str, Any], spec: EvalSpec) -> list[str]:
     """``field: file's value vs this evaluation's`` for each field that makes ``record`` another evaluation's."""
-    out = [f"{k}: {record.get(k)!r} there, {common[k]!r} here" for k in _SPEC_KEYS if record.get(k) != common[k]]
+    out = [f"{k}: {record.get(k)!r} there, {common.get(k)!r} here" for k in (*_SPEC_KEYS, "shard")
+           if record.get(k) != common.get(k)]
     index = record.get("index")
     if not isinstance(index, int) or index < 0:
         out.append(f"index: {index!r} is not an episode index")
+    elif not spec.in_shard(index):
+        out.append(f"index: episode {index} is not in shard {spec.shard[0]}/{spec.shard[1]}")
     elif record.get("seed") != held_out_seed(index, spec.seed_offset):
         seed = record.get("seed")
         there = seed - HELD_OUT_BASE - index if isinstance(seed, int) else f"seed {seed!r}"
@@ -727,10 +882,16 @@ def evaluate_tasks(
         if from_contact is not None:
             settle_from_contact(spec, from_contact, out_dir, progress)
         rows.append(evaluate(spec, out_dir, progress))
-    out = Path(out_dir)
-    write_csv(rows, out / "summary.csv")
-    (out / "summary.md").write_text(format_markdown(rows), encoding="utf-8")
+    write_summaries(rows, out_dir, shard_suffix(specs[0].shard) if specs else "")
     return rows
+
+
+def write_summaries(rows: Sequence[dict[str, Any]], out_dir: str | Path, suffix: str = "") -> None:
+    """``summary<suffix>.csv`` and ``summary<suffix>.md`` (one row per task) in ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(rows, out / f"summary{suffix}.csv")
+    (out / f"summary{suffix}.md").write_text(format_markdown(rows), encoding="utf-8")
 
 
 # ---------------------------------------------------------------------------- command line
@@ -746,12 +907,21 @@ class EvaluateOptions:
         task: Bundled stage name or task YAML path.
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.
-        workers: Worker processes (0: this process; default: one per CPU core).
+        workers: Worker processes (0: this process; default: one per CPU core this process may use).
         out: Output folder (default ``evals/<policy>``).
         seed_offset: Scenario i uses the episode seed 2**32 + seed_offset + i (never a training seed).
         action: ``mean`` (the policy's mean action), ``expected`` or ``sample`` (its Gaussian; checkpoints only).
         from_contact: Folder of a contact-rule evaluation of the same policy, seeds and commit whose
             settled episodes a ``task.collision=scan`` evaluation takes.
+        shard: ``i/n``: only the episodes whose index is i modulo n (same seeds) into
+            ``<task>.shard-i-of-n.jsonl``, so the jobs of an array can share one ``out`` (``merge=`` joins them).
+        backend: ``local`` (worker processes on this machine) or ``ray`` (Ray tasks, ``pip install
+            mjnav[ray]``), with the same records.
+        address: Ray cluster to join with ``backend=ray`` (``auto``, ``HOST:6379``); default: a local Ray
+            with ``workers`` CPUs.
+        merge: Comma-separated shard folders or JSONL files to merge into ``out`` (one JSONL per task and
+            the summary of the whole evaluation) instead of evaluating; refuses overlapping or
+            disagreeing shards.
     """
 
     policy: str | None = None
@@ -763,6 +933,10 @@ class EvaluateOptions:
     seed_offset: int = 0
     action: str = "mean"
     from_contact: str | None = None
+    shard: str | None = None
+    backend: str = "local"
+    address: str | None = None
+    merge: str | None = None
 
 
 def grammar() -> Grammar:
@@ -784,7 +958,7 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
     opts = parsed.options
     if opts.policy is None:
         raise ValueError("policy= is required (mjnav evaluate --help)")
-    workers = _at_least("workers", os.cpu_count() or 1 if opts.workers is None else opts.workers, 0)
+    workers = _at_least("workers", usable_cores() if opts.workers is None else opts.workers, 0)
     episodes, offset = _at_least("episodes", opts.episodes, 1), _at_least("seed_offset", opts.seed_offset, 0)
     # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.eval.policies import ACTION_MODES
@@ -796,9 +970,14 @@ def parse_args(argv: Sequence[str]) -> tuple[list[EvalSpec], Path, Path | None]:
         raise ValueError(str(err)) from None
     if opts.action not in ACTION_MODES:
         raise ValueError(f"action: expected one of {ACTION_MODES}, got {opts.action!r}")
+    if opts.backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {', '.join(BACKENDS)}, got {opts.backend!r}")
+    if opts.address is not None and opts.backend != "ray":
+        raise ValueError("address: a Ray cluster address; needs backend=ray")
+    shard = parse_shard(opts.shard) if opts.shard is not None else (0, 1)
     tasks = (opts.tasks or opts.task).split(",")
     specs = [EvalSpec(t.strip(), opts.policy, episodes, offset, parsed.task, workers, trained, opts.action,
-                      parsed.planner) for t in tasks if t.strip()]
+                      parsed.planner, shard, opts.backend, opts.address) for t in tasks if t.strip()]
     out = Path(opts.out or Path("evals") / opts.policy.replace(os.sep, "_").removesuffix(".pt"))
     from_contact = Path(opts.from_contact) if opts.from_contact is not None else None
     if from_contact is not None and not from_contact.is_dir():
@@ -825,5 +1004,6 @@ def main(argv: Sequence[str]) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_markdown(rows), end="")
-    print(f"wrote {out}/summary.csv, {out}/summary.md and one JSONL per task")
+    suffix = shard_suffix(specs[0].shard)
+    print(f"wrote {out}/summary{suffix}.csv, {out}/summary{suffix}.md and one JSONL per task")
     return 0

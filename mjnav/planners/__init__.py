@@ -3,9 +3,11 @@
 ``mpc_goal`` (convex region + MPC towards the goal), ``mpc_gap`` (the same towards open space near
 the goal direction), ``mpc_crowd`` (the same steered by the pedestrians' true motion: privileged, an
 oracle), ``mpc_tracked`` (the same steered by the robot's own LiDAR tracks), ``teb`` (timed
-elastic band), ``dwa`` (dynamic window) and ``random_jerk`` (:class:`RandomPlanner`). Set ``env.task.planner`` to one and the task uses it instead of the
-learned action layer; the episode and its scoring stay the same. Pure numpy/scipy; every planner
-brakes (and counts it in ``stats``) instead of raising.
+elastic band), ``dwa`` (dynamic window) and ``random_jerk`` (:class:`RandomPlanner`). Set
+``env.task.planner`` to one and the task uses it instead of the learned action layer; the episode
+and its scoring stay the same. numpy/scipy with numba kernels (TEB's band solver
+:mod:`mjnav.planners.trf`, DWA's clearance); every planner brakes (and counts it in ``stats``)
+instead of raising.
 
 Planners are looked up by name in :data:`PLANNERS` (``policy=<name>``; ``planner.<field>=value``
 sets the fields of its config class), or given as ``policy=package.module:Class`` or

@@ -13,12 +13,14 @@ operation is the one scipy performs, in the same order, so bands (and episodes) 
 * sums over matrix entries run in CSR/CSC order from zero, as scipy's ``csr_matvec``/``csc_matvec``;
 * vector norms and dot products call the ``ddot`` of numpy's own BLAS (``numpy.dot`` does), found
   with ctypes in numpy's bundled OpenBLAS (:func:`blas_ddot`);
-* scalar powers call libm's ``pow`` (as numpy's scalar ``**`` does) and hypotenuses libm's
-  ``hypot`` (as ``numpy.hypot`` does).
+* scalar powers call libm's ``pow`` (as numpy's scalar ``**`` does: ``np.float64(x) ** 2`` differs
+  from ``x * x`` about once in a thousand) and hypotenuses libm's ``hypot`` (as ``numpy.hypot``
+  does; Python's ``math.hypot`` differs from it).
 
-Where numpy's BLAS cannot be found (another numpy build), :func:`available` is false and the
-planner keeps calling ``least_squares``. ``tests/planners/test_trf.py`` compares both on random
-bands, bit for bit.
+Where numpy's BLAS, libm or scipy's private helpers cannot be found (another numpy build or
+platform, another scipy layout), :func:`available` is false and the planner keeps calling
+``least_squares``. ``tests/planners/test_trf.py`` compares both on random bands, bit for bit, with
+the installed scipy (written against scipy 1.17).
 
 The loops follow SciPy's ``trf_bounds`` and ``lsmr`` (SciPy, BSD-3-Clause licence, © the SciPy
 developers) step for step, because bit-identity requires the same operations in the same order.
@@ -35,19 +37,24 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from scipy.linalg import qr
-from scipy.optimize._lsq.common import (
-    CL_scaling_vector,
-    build_quadratic_1d,
-    check_termination,
-    in_bounds,
-    make_strictly_feasible,
-    minimize_quadratic_1d,
-    solve_trust_region_2d,
-    update_tr_radius,
-)
-from scipy.optimize._lsq.trf import select_step
-from scipy.optimize._numdiff import _eps_for_method, group_columns
+from scipy.linalg import get_lapack_funcs, qr
+try:  # scipy's private helpers: the algorithm this module reproduces (checked against scipy 1.17)
+    from scipy.optimize._lsq.common import (
+        CL_scaling_vector,
+        build_quadratic_1d,
+        check_termination,
+        in_bounds,
+        make_strictly_feasible,
+        minimize_quadratic_1d,
+        solve_trust_region_2d,
+        update_tr_radius,
+    )
+    from scipy.optimize._lsq.trf import select_step
+    from scipy.optimize._numdiff import _eps_for_method, group_columns
+except ImportError:  # another scipy layout: available() is false and TEB calls least_squares
+    _SCIPY_HELPERS = False
+else:
+    _SCIPY_HELPERS = True
 
 __all__ = ["BandTerms", "available", "blas_ddot", "residuals", "solve_band", "structure"]
 
@@ -97,7 +104,7 @@ def _libm_pow() -> ctypes._CFuncPtr | None:
 
 def available() -> bool:
     """Whether :func:`solve_band` can reproduce ``least_squares`` here (numpy's BLAS and libm found)."""
-    return blas_ddot() is not None and _libm_pow() is not None
+    return _SCIPY_HELPERS and blas_ddot() is not None and _libm_pow() is not None
 
 
 # ---------------------------------------------------------------------------- residuals
@@ -416,6 +423,34 @@ def _lsmr(ddot, pow_, indptr, indices, data, d, diag, b, m):
 
 # ---------------------------------------------------------------------------- trust region reflective
 
+_POTRF, _POTRS = get_lapack_funcs(("potrf", "potrs"), (np.zeros((2, 2)),))
+
+
+def _trust_region_2d(B: np.ndarray, g: np.ndarray, Delta: float) -> np.ndarray:
+    """scipy's ``solve_trust_region_2d(B, g, Delta)[0]`` with the same LAPACK and numpy calls, without
+    scipy's wrappers: the Newton step if ``B`` is positive definite and the step within the region,
+    else the best boundary point from the roots of scipy's quartic. A non-finite ``B`` or ``g`` goes
+    to scipy's function (which raises as it always did)."""
+    if not (np.isfinite(B).all() and np.isfinite(g).all()):
+        return solve_trust_region_2d(B, g, Delta)[0]
+    c, info = _POTRF(B, lower=False, overwrite_a=False, clean=False)
+    if info < 0 or (info == 0 and not np.isfinite(c).all()):
+        return solve_trust_region_2d(B, g, Delta)[0]
+    if info == 0:
+        x, info = _POTRS(c, g, lower=False, overwrite_b=False)
+        if info != 0:
+            return solve_trust_region_2d(B, g, Delta)[0]
+        p = -x
+        if np.dot(p, p) <= Delta**2:
+            return p
+    a, b, c = B[0, 0] * Delta**2, B[0, 1] * Delta**2, B[1, 1] * Delta**2
+    d, f = g[0] * Delta, g[1] * Delta
+    t = np.roots(np.array([-b + d, 2 * (a - c + f), 6 * b, 2 * (-a + c + f), -b - d]))
+    t = np.real(t[np.isreal(t)])
+    p = Delta * np.vstack((2 * t / (1 + t**2), (1 - t**2) / (1 + t**2)))
+    value = 0.5 * np.sum(p * B.dot(p), axis=0) + np.dot(g, p)
+    return p[:, np.argmin(value)]
+
 
 class _Problem:
     """One call's residual function and Jacobian (scipy's ``VectorFunction`` with finite differences)."""
@@ -523,7 +558,7 @@ def _trf_bounds(prob: _Problem, x0: np.ndarray, f0: np.ndarray, ub: np.ndarray, 
         theta = max(0.995, 1 - g_norm)
         actual_reduction = -1
         while actual_reduction <= 0 and nfev < max_nfev:
-            p_S, _ = solve_trust_region_2d(B_S, g_S, Delta)
+            p_S = _trust_region_2d(B_S, g_S, Delta)
             p_h = S.dot(p_S)
             p = d * p_h
             step, step_h, predicted_reduction = select_step(x, J_h, diag_h, g_h, p, p_h, d, Delta, lb, ub, theta)

@@ -189,7 +189,16 @@ class NavCore:
         if self._aligned is not None:
             self._aligned.reset(self.region.boundary_xy, position)
             obs = self._align(obs, position)
-        return obs
+        return self._with_tracks(obs, position)
+
+    def _with_tracks(self, obs: np.ndarray, position: np.ndarray) -> np.ndarray:
+        """``observation.tracks=K``: the stack followed by the K nearest of :attr:`tracks` (float32;
+        the task runs the tracker for it); else ``obs``."""
+        count = self.config.observation.tracks
+        if not count:
+            return obs
+        block = obs_lib.tracks_block(self.tracks, position, count, self.frame_rotation(position))
+        return np.concatenate([obs, block.astype(np.float32)])
 
     def _align(self, obs: np.ndarray, position: np.ndarray) -> np.ndarray:
         """``observation.history='aligned'``: re-read the older polygon blocks from ``position``."""
@@ -398,6 +407,7 @@ class NavCore:
         if self._aligned is not None:
             self._aligned.push(self.region.boundary_xy, position)
             obs = self._align(obs, position)
+        obs = self._with_tracks(obs, position)
         self.timers["observation"] += time.perf_counter() - t0
         return obs, reward, terms
 
@@ -414,4 +424,4 @@ class NavCore:
     def observation_size(self) -> int:
         """Length of the stacked observation."""
         return obs_lib.observation_size(self.config.observation.frames, self.config.region.num_points,
-                                        self.design.state_size)
+                                        self.design.state_size, self.config.observation.tracks)

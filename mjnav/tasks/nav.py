@@ -100,9 +100,10 @@ class CrowdNavTask(composer.Task):
 
     @property
     def tracks_enabled(self) -> bool:
-        """Whether the LiDAR tracker runs this episode: ``tracks.enabled`` or a planner declaring
-        ``uses_tracks`` (decided at each episode start)."""
-        return self.config.tracks.enabled or declared_tracks(self.planner)
+        """Whether the LiDAR tracker runs this episode: ``tracks.enabled``, a planner declaring
+        ``uses_tracks`` or an observation holding tracks (``observation.tracks`` > 0); decided at
+        each episode start."""
+        return self.config.tracks.enabled or self.config.observation.tracks > 0 or declared_tracks(self.planner)
 
     @property
     def tracks(self) -> np.ndarray | None:

@@ -13,6 +13,17 @@ The stack is ``[polygon_{t-2}, polygon_{t-1}, polygon_t, state_{t-2}, state_{t-1
 With ``observation.history='aligned'`` (not in the paper) the older polygon blocks are
 :func:`aligned_block` s: each older region read from the robot's current position along the
 current block's bearings (:class:`RegionHistory` keeps the regions in world coordinates).
+
+With ``observation.tracks=K`` (not in the paper; "Ours + tracks") the K nearest pedestrian tracks
+of the robot's own LiDAR tracker (:mod:`mjnav.perception`, no simulator ground truth) follow the
+stack, for the current frame only (:func:`tracks_block`), 5 values each, nearest centre first::
+
+    [dx/10, dy/10, v_x/2.5, v_y/2.5, valid]
+
+with ``(dx, dy)`` the track's centre relative to the robot (metres) and ``(v_x, v_y)`` its
+estimated velocity (m/s), both in the observation's axes (turned into the goal frame with
+``observation.frame=goal``), each clipped to [-1, 1], and valid = 1 for a track; missing slots
+are zeros. The observation is then ``3·133 + 5K`` long; K = 0 is the paper's 399, bit for bit.
 """
 
 from __future__ import annotations
@@ -30,6 +41,7 @@ __all__ = [
     "DISTANCE_SCALE",
     "POLYGON_SIZE",
     "STATE_SIZE",
+    "TRACK_FEATURES",
     "FrameStack",
     "Plan",
     "RegionHistory",
@@ -37,6 +49,7 @@ __all__ = [
     "observation_size",
     "polygon_block",
     "state_block",
+    "tracks_block",
 ]
 
 DISTANCE_SCALE = 40.0  # ρ normaliser, metres
@@ -44,6 +57,7 @@ SPEED_SCALE = 2.5  # velocity normaliser, m/s (per-axis limit)
 RANGE_SCALE = 10.0  # point-distance normaliser, metres (LiDAR range)
 POLYGON_SIZE = 120
 STATE_SIZE = 13
+TRACK_FEATURES = 5  # [dx, dy, vx, vy, valid] per track (observation.tracks)
 
 
 @dataclasses.dataclass(eq=False)
@@ -69,9 +83,46 @@ class Plan:
         return np.array([self.q_s, self.q_l, self.q1, self.qn, self.q1_world, self.qn_world], dtype=np.float64)
 
 
-def observation_size(frames: int = 3, points: int = 60, state_size: int = STATE_SIZE) -> int:
-    """Length of the stacked observation (399 for the defaults; designs keep fewer state values)."""
-    return frames * (2 * points + state_size)
+def observation_size(frames: int = 3, points: int = 60, state_size: int = STATE_SIZE, tracks: int = 0) -> int:
+    """Length of the observation: the stack (399 for the defaults; designs keep fewer state values)
+    plus :data:`TRACK_FEATURES` values for each of ``tracks`` track slots."""
+    return frames * (2 * points + state_size) + TRACK_FEATURES * tracks
+
+
+def tracks_block(tracks: np.ndarray | None, position: np.ndarray, count: int, rotation: float = 0.0) -> np.ndarray:
+    """The ``count`` nearest tracks as the observation holds them (module docstring).
+
+    Args:
+        tracks: (T, >=4) rows ``[x, y, vx, vy, ...]`` of confirmed tracks, world frame (metres,
+            m/s), in any order; None or empty: no track.
+        position: (2,) robot position, world frame, metres.
+        count: Slots K (>= 0); the K tracks with the nearest centres, the rest zeros.
+        rotation: Angle (rad) of the observation's x axis in the world (``observation.frame``).
+
+    Returns:
+        (5K,) float64: ``[dx/10, dy/10, vx/2.5, vy/2.5, 1]`` per track, clipped to [-1, 1].
+
+    Raises:
+        ValueError: A negative ``count`` or rows with fewer than 4 values.
+    """
+    if count < 0:
+        raise ValueError(f"tracks_block: count must be >= 0, got {count}")
+    out = np.zeros((count, TRACK_FEATURES))
+    rows = np.zeros((0, 4)) if tracks is None or np.size(tracks) == 0 else np.asarray(tracks, dtype=np.float64)
+    if rows.ndim != 2 or rows.shape[1] < 4:
+        raise ValueError(f"tracks_block: tracks must be (T, >=4) [x, y, vx, vy, ...], got shape {rows.shape}")
+    if count == 0 or len(rows) == 0:
+        return out.ravel()
+    relative = rows[:, :2] - np.asarray(position, dtype=np.float64)[:2]
+    order = np.argsort(np.hypot(relative[:, 0], relative[:, 1]), kind="stable")[:count]
+    c, s = math.cos(rotation), math.sin(rotation)
+    turn = np.array([[c, s], [-s, c]])  # world -> observation axes
+    k = len(order)
+    out[:k, 0:2] = relative[order] @ turn.T / RANGE_SCALE
+    out[:k, 2:4] = rows[order, 2:4] @ turn.T / SPEED_SCALE
+    np.clip(out[:k, :4], -1.0, 1.0, out=out[:k, :4])
+    out[:k, 4] = 1.0
+    return out.ravel()
 
 
 def polygon_block(boundary: np.ndarray, inflation: float, rotation: float = 0.0) -> np.ndarray:

@@ -127,6 +127,11 @@ class TrainConfig:
         workers: Workers stepping environments (-1: one per CPU core, at most N, the node's cores
             shared by its ranks under torchrun; 0: in-process). The trainer process is worker 0,
             so W workers start W - 1 processes.
+        main_envs: Environments the trainer process steps itself when it is one of W >= 2
+            workers (-1: an even share, N / W); the worker processes share the rest. Fewer leave
+            the trainer time for its own per-step work (policy inference, the adapter's and PPO's
+            bookkeeping) while the worker processes step; rollouts are the same for any value
+            (``mjnav bench collect`` shows the trainer's share).
         start_method: Worker start method (``forkserver`` or ``spawn``; never plain fork with torch).
         iterations: Total PPO iterations of the run (a resumed run continues up to this).
         steps_per_env: Rollout length per environment and iteration.
@@ -168,6 +173,7 @@ class TrainConfig:
 
     num_envs: int = 64
     workers: int = -1
+    main_envs: int = -1
     start_method: Literal["forkserver", "spawn"] = "forkserver"
     iterations: int = 1000
     steps_per_env: int = 256
@@ -200,6 +206,8 @@ class TrainConfig:
         _check(
             -1 <= self.workers <= self.num_envs, "workers", f"must be -1, 0 or <= num_envs ({self.num_envs})"
         )
+        _check(self.main_envs == -1 or 1 <= self.main_envs < self.num_envs, "main_envs",
+               f"must be -1 or in [1, num_envs) ({self.num_envs})")
         _check(self.iterations >= 1 and self.steps_per_env >= 1, "iterations", "must be >= 1")
         _check(self.learning_rate > 0, "learning_rate", "must be > 0")
         _check(0 < self.gamma <= 1 and 0 <= self.lam <= 1, "gamma", "needs 0 < gamma <= 1, 0 <= lam <= 1")

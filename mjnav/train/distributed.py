@@ -37,7 +37,7 @@ import torch
 import torch.distributed as dist
 from rsl_rl.runners import OnPolicyRunner
 
-from mjnav.envs.workers import usable_cores
+from mjnav.jobs import usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = [

@@ -62,6 +62,8 @@ __all__ = [
     "rsl_config",
     "save_checkpoint",
     "save_weights",
+    "widen_columns",
+    "widen_inputs",
 ]
 
 #: The weights-only checkpoint every run writes at the end (actor with its std, critic; no optimizer state).
@@ -116,6 +118,7 @@ def make_vec_env(
         device=train.device,
         max_episode_length=task.timing.episode_steps,
         start_method=train.start_method,
+        main_envs=train.main_envs if train.main_envs >= 0 else None,
         cfg={"task": task.name},
     )
 
@@ -332,7 +335,9 @@ def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool
         runner: The runner to load into.
         path: A ``model_<it>.pt`` checkpoint.
         weights_only: Load actor and critic weights only (``init=``: start a new stage from them).
-            A critic whose shapes differ from the runner's (another critic input, e.g.
+            An actor trained on a shorter observation (``observation.tracks=K`` added) is widened
+            first (:func:`widen_inputs`: it acts exactly as before). A critic whose shapes still
+            differ from the runner's (another critic input, e.g.
             ``observation.critic_pedestrians``) is not loaded: the run keeps its fresh critic.
 
     Returns:
@@ -341,6 +346,7 @@ def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool
     if weights_only:
         saved = torch.load(str(path), map_location=runner.device, weights_only=False)
         own = getattr(runner.alg, "_raw_critic", runner.alg.critic).state_dict()
+        saved = widen_inputs(saved, getattr(runner.alg, "_raw_actor", runner.alg.actor).state_dict(), own)
         shapes = {k: tuple(v.shape) for k, v in saved.get("critic_state_dict", {}).items()}
         critic = shapes == {k: tuple(v.shape) for k, v in own.items()}
         runner.alg.load(saved, {"actor": True, "critic": critic}, strict=True)  # what runner.load does, read once
@@ -348,6 +354,59 @@ def load_checkpoint(runner: OnPolicyRunner, path: str | Path, weights_only: bool
     runner.load(str(path), map_location=runner.device)
     runner.current_learning_iteration += 1
     return True
+
+
+def widen_inputs(saved: dict[str, Any], actor: dict[str, Any], critic: dict[str, Any]) -> dict[str, Any]:
+    """A checkpoint whose networks take a longer observation, acting exactly as ``saved`` does.
+
+    When the runner's actor reads ``n`` more values than ``saved``'s (new inputs appended to the
+    actor's observation, e.g. ``observation.tracks=K``: the old values keep their places), the
+    first layer gets ``n`` zero weight columns at the end and an observation normaliser mean 0 /
+    std 1 for them, so the outputs ignore the new values until training moves those columns. The
+    critic is widened alike, its new columns inserted after the old actor's inputs (where the
+    actor's group ends in the critic's input), when it too reads exactly ``n`` more values.
+
+    Args:
+        saved: An rsl-rl checkpoint (``actor_state_dict``, ``critic_state_dict``, ...).
+        actor: The runner's actor ``state_dict`` (the shapes wanted).
+        critic: The runner's critic ``state_dict``.
+
+    Returns:
+        ``saved`` itself when the actor's input widths match (or nothing can be widened), else a
+        copy with the widened state dicts.
+    """
+    first = "mlp.0.weight"
+    old_actor = saved.get("actor_state_dict", {})
+    if first not in old_actor or first not in actor:
+        return saved
+    width = old_actor[first].shape[1]
+    extra = actor[first].shape[1] - width
+    if extra <= 0:
+        return saved
+    out = {**saved, "actor_state_dict": widen_columns(old_actor, width, extra)}
+    old_critic = saved.get("critic_state_dict", {})
+    if first in old_critic and first in critic and critic[first].shape[1] - old_critic[first].shape[1] == extra:
+        out["critic_state_dict"] = widen_columns(old_critic, width, extra)
+    return out
+
+
+def widen_columns(state: dict[str, Any], at: int, extra: int) -> dict[str, Any]:
+    """An rsl-rl actor or critic ``state`` dict with ``extra`` inputs inserted at column ``at``:
+    zero first-layer weights and, with an observation normaliser, mean 0 and variance and std 1 for
+    them (a copy; the other tensors are shared)."""
+    def insert(tensor: torch.Tensor, fill: float, dim: int) -> torch.Tensor:
+        shape = list(tensor.shape)
+        shape[dim] = extra
+        pad = torch.full(shape, fill, dtype=tensor.dtype, device=tensor.device)
+        head, tail = tensor.split([at, tensor.shape[dim] - at], dim=dim)
+        return torch.cat([head, pad, tail], dim=dim)
+
+    out = dict(state)
+    out["mlp.0.weight"] = insert(state["mlp.0.weight"], 0.0, 1)
+    for key, fill in (("obs_normalizer._mean", 0.0), ("obs_normalizer._var", 1.0), ("obs_normalizer._std", 1.0)):
+        if key in state:
+            out[key] = insert(state[key], fill, state[key].ndim - 1)
+    return out
 
 
 def save_checkpoint(runner: OnPolicyRunner, run_dir: str | Path) -> Path:

@@ -3,7 +3,8 @@
 The arguments are :class:`TrainOptions` plus ``task.*``/``train.*`` overrides and ``seed=`` (the same
 as ``train.seed=``), in the grammar of :mod:`mjnav.args`; ``mjnav train --help`` lists them.
 
-Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>/``: ``config.yaml`` (resolved task and train
+Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>-<pid>-<4 hex>/`` (:func:`mjnav.jobs.unique_stamp`: runs
+of a job array started in the same second never share a folder): ``config.yaml`` (resolved task and train
 configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
 runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed) and
 ``checkpoint_weights.pt`` (actor with its std and critic, no optimizer state: ~2.3 MB, what a
@@ -20,7 +21,6 @@ import dataclasses
 import math
 import shlex
 import sys
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,6 +30,7 @@ import yaml
 
 from mjnav import shipped
 from mjnav.args import Grammar, parse
+from mjnav.jobs import unique_stamp
 from mjnav.config import TASK_SECTIONS, TaskConfig
 from mjnav.policy import training_overrides
 from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
@@ -251,7 +252,7 @@ def plan_run(args: RunArgs) -> RunPlan:
             train = load_train([*recipe.train_overrides(), *args.train_overrides])
         task = stages.load_stage(args.task, overrides)  # type: ignore[arg-type]
         label = task.name
-    run_dir = Path(args.out) / f"{label}-{time.strftime('%Y%m%d-%H%M%S')}"
+    run_dir = Path(args.out) / f"{label}-{unique_stamp()}"
     return RunPlan(run_dir, task, train, overrides, state, init=init, start=start)
 
 
@@ -272,7 +273,7 @@ def _plan_recipe(args: RunArgs) -> RunPlan:
     overrides = [*recipe.task_overrides, *args.task_overrides]
     train = load_train([*recipe.train_overrides(), *args.train_overrides])
     task = stages.load_stage(recipe.task, overrides)
-    run_dir = Path(args.out) / f"{task.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    run_dir = Path(args.out) / f"{task.name}-{unique_stamp()}"
     return RunPlan(run_dir, task, train, overrides, init=init, start="recipe")
 
 

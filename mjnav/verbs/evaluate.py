@@ -1,12 +1,22 @@
-"""``mjnav evaluate``: held-out evaluation (:mod:`mjnav.eval.runner`)."""
+"""``mjnav evaluate``: held-out evaluation (:mod:`mjnav.eval.runner`), or the merge of its shards
+(``merge=``, :mod:`mjnav.eval.shards`)."""
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 from mjnav.args import Grammar, Parsed
+from mjnav.eval.metrics import format_markdown
+from mjnav.eval.runner import EvalError
 from mjnav.eval.runner import grammar as runner_grammar
 from mjnav.eval.runner import main
+from mjnav.eval.shards import merge as merge_shards
 
 __all__ = ["grammar", "run"]
+
+#: The keys ``merge=`` may be given with.
+MERGE_KEYS = frozenset({"merge", "out"})
 
 
 def grammar() -> Grammar:
@@ -15,5 +25,28 @@ def grammar() -> Grammar:
 
 
 def run(parsed: Parsed, argv: list[str]) -> int:
-    """Evaluate, write the files, print the table (:func:`mjnav.eval.runner.main`)."""
-    return main(argv)
+    """Evaluate, write the files, print the table (:func:`mjnav.eval.runner.main`); with ``merge=``,
+    merge shards instead (:func:`merge`)."""
+    if parsed.options.merge is None:
+        return main(argv)
+    return merge(parsed)
+
+
+def merge(parsed: Parsed) -> int:
+    """``merge=A,B,... [out=DIR]``: merge shard files into ``out`` (default: the first source's folder)."""
+    extra = sorted(set(parsed.given) - MERGE_KEYS) + [f"{p}.*" for p in ("task", "planner") if getattr(parsed, p)]
+    sources = [s.strip() for s in parsed.options.merge.split(",") if s.strip()]
+    try:
+        if extra:
+            raise EvalError(f"merge: takes only merge= and out=, got {', '.join(extra)}")
+        if not sources:
+            raise EvalError("merge: expected comma-separated shard folders or JSONL files")
+        first = Path(sources[0])
+        out = Path(parsed.options.out) if parsed.options.out else (first if first.is_dir() else first.parent)
+        rows = merge_shards(sources, out)
+    except EvalError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    print(format_markdown(rows), end="")
+    print(f"wrote {out}/summary.csv, {out}/summary.md and one merged JSONL per task")
+    return 0

@@ -8,13 +8,13 @@ markdown. Tables use each policy's training config, so no task overrides are tak
 from __future__ import annotations
 
 import dataclasses
-import os
 import sys
 from pathlib import Path
 
 from mjnav.args import Grammar, Parsed
 from mjnav.eval.runner import EvalError
 from mjnav.eval.tables import TABLES, format_table, table_rows
+from mjnav.jobs import usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = ["TablesOptions", "grammar", "run"]
@@ -28,7 +28,7 @@ class TablesOptions:
         table: The paper's table number (2, 3 or 4).
         episodes: Held-out scenarios per method and stage.
         out: Folder of the evaluation records (``<out>/<method>/<stage>_<rule>.jsonl``).
-        workers: Worker processes of the evaluations that are run (default: one per CPU core).
+        workers: Worker processes of the evaluations that are run (default: one per CPU core this process may use).
         seed_offset: Offset of the held-out episode seeds.
         run: Run the missing evaluations (false: report them as missing).
         action: ``mean``, ``expected`` or ``sample`` (how a learned policy acts).
@@ -68,7 +68,7 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         if opts.table not in TABLES:
             raise ConfigError(f"table: {opts.table} is not available (known: {sorted(TABLES)})")
         names = [n.strip() for n in opts.methods.split(",") if n.strip()] or None
-        workers = os.cpu_count() or 1 if opts.workers is None else opts.workers
+        workers = usable_cores() if opts.workers is None else opts.workers
         planners = [p.strip() for p in opts.planners.split(",") if p.strip()]
         rows = table_rows(opts.table, Path(opts.out), opts.episodes, opts.seed_offset, workers, opts.run,
                           opts.action, names, planners)

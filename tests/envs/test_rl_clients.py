@@ -144,6 +144,7 @@ BOUND_CASES = [
     ("stage1", []), ("stage5", []), ("stage6", []), ("stage7", []),
     ("stage5", ["design=design1"]), ("stage5", ["design=design4"]),
     ("stage5", ["observation.frame=goal", "action.heading=goal"]),
+    ("stage7", ["observation.frame=goal", "action.heading=goal", "observation.tracks=6"]),
 ]
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import torch
 
-from mjnav.envs.vec_env import OUTCOMES, EnvError, NavVecEnv
+from mjnav.envs.vec_env import OUTCOMES, EnvError, NavVecEnv, _blocks
 
 OBS_DIM, ACT_DIM = 399, 4
 
@@ -264,9 +264,10 @@ def test_same_seed_same_rollouts(workers: dict) -> None:
 
 
 def test_worker_count_does_not_change_rollouts() -> None:
-    """Every adapter layout with the same seed produces identical rollouts."""
+    """Every adapter layout with the same seed produces identical rollouts, this process's share
+    (``main_envs``) included."""
     runs = []
-    for layout in LAYOUTS.values():
+    for layout in [*LAYOUTS.values(), {"workers": 2, "main_envs": 1}, {"workers": 3, "main_envs": 3}]:
         with NavVecEnv(FakeFactory(limit=6), num_envs=5, seed=11, **layout) as env:
             runs.append(_rollout(env, 12))
     for other in runs[1:]:
@@ -281,6 +282,25 @@ def test_main_process_steps_the_first_block() -> None:
         assert all(h.process.is_alive() for h in processes)
     with NavVecEnv(FakeFactory(), num_envs=6, seed=0, workers=3, step_in_main=False) as env:
         assert sum(hasattr(h, "process") for h in env._handles) == 3
+
+
+def test_main_envs_sets_this_process_block() -> None:
+    """main_envs is the size of this process's block; the worker processes share the rest evenly."""
+    with NavVecEnv(FakeFactory(), num_envs=6, seed=0, workers=3, main_envs=1) as env:
+        assert env.blocks == [range(0, 1), range(1, 4), range(4, 6)]
+        assert [h.indices for h in env._handles if hasattr(h, "process")] == [range(1, 4), range(4, 6)]
+    assert _blocks(6, 1, 2) == [range(0, 6)]  # one worker: one block, main_envs ignored
+    assert _blocks(7, 2) == [range(0, 4), range(4, 7)]  # the default even split
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"workers": 3, "main_envs": 0}, r"main_envs must be in \[1, 4\]"),
+    ({"workers": 3, "main_envs": 5}, r"main_envs must be in \[1, 4\]"),
+    ({"workers": 2, "main_envs": 2, "step_in_main": False}, "needs step_in_main"),
+])
+def test_bad_main_envs_is_refused(kwargs: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        NavVecEnv(FakeFactory(), num_envs=6, seed=0, **kwargs)
 
 
 def test_main_block_exception_stops_the_worker_processes() -> None:

@@ -126,7 +126,7 @@ def test_a_changed_baseline_default_makes_its_evaluations_stale(tmp_path: Path,
     from mjnav.planners import PLANNERS, TebConfig
 
     assert policy_sha256("teb") == policy_sha256("teb") != policy_sha256("teb", ["d_inflation=0.9"])
-    assert policy_sha256("dwa") != policy_sha256("teb") and policy_sha256("mpc_goal") is None
+    assert policy_sha256("dwa") != policy_sha256("teb") and policy_sha256("random_jerk") is None
     table = tables.TABLES[4]
     monkeypatch.setitem(tables.TABLES, 4, dataclasses.replace(table, stages=("stage6",), methods=table.methods[:1]))
     for rule in tables.RULES:

@@ -53,3 +53,25 @@ def test_bad_start_raises_like_scipy() -> None:
     z[-1] = 0.0  # an interval below its lower bound
     with pytest.raises(ValueError, match="outside of provided bounds"):
         trf.solve_band(z, n, goal, v_start, assoc, teb._terms(cfg), 50.0, lower, 8, teb._structure(n, 2))
+
+
+def test_trust_region_2d_is_scipys() -> None:
+    from scipy.optimize._lsq.common import solve_trust_region_2d
+
+    rng = np.random.default_rng(3)
+    for _ in range(2000):
+        a = rng.normal(size=(5, 2))
+        B = a.T @ a + rng.choice([0.0, -1.0]) * np.eye(2)  # positive definite or not
+        g, delta = rng.normal(size=2), float(rng.uniform(0.01, 3.0))
+        assert trf._trust_region_2d(B, g, delta).tobytes() == solve_trust_region_2d(B, g, delta)[0].tobytes()
+
+
+def test_optimize_band_same_with_scipy_fallback(monkeypatch: pytest.MonkeyPatch) -> None:
+    cfg = teb.TebConfig()
+    rng = np.random.default_rng(11)
+    goal, points = np.array([3.0, 1.0]), rng.uniform(-4, 4, (30, 2))
+    fast, fast_cost = teb.optimize_band(teb.straight_band(goal, cfg), np.array([0.5, 0.0]), points, cfg)
+    monkeypatch.setattr(trf, "available", lambda: False)
+    slow, slow_cost = teb.optimize_band(teb.straight_band(goal, cfg), np.array([0.5, 0.0]), points, cfg)
+    assert fast.poses.tobytes() == slow.poses.tobytes() and fast.dts.tobytes() == slow.dts.tobytes()
+    assert fast_cost == slow_cost

@@ -14,6 +14,7 @@ import yaml
 from rsl_rl.algorithms import PPO
 from rsl_rl.runners import OnPolicyRunner
 
+from mjnav.config import load_task
 from mjnav.envs.vec_env import NavVecEnv
 from mjnav.schema import ConfigError
 from mjnav.train import curriculum, session
@@ -27,6 +28,7 @@ from mjnav.train.runner import (
     handle_interrupts,
     learn,
     load_checkpoint,
+    make_vec_env,
     request_stop,
     rsl_config,
     save_checkpoint,
@@ -458,3 +460,12 @@ def test_resumed_version_1_task_keeps_its_layouts() -> None:
     assert old.version == 1 and old.layout.pedestrian_clearance == 0.0
     new = session._task_from_dict(dataclasses.asdict(load_task("stage7")), [])
     assert new.version == TaskConfig().version == 2 and new.layout.pedestrian_clearance == 1.95
+
+
+def test_main_envs_sets_the_trainer_block() -> None:
+    """train.main_envs reaches the adapter: the trainer steps that many environments, the worker the rest."""
+    env = make_vec_env(load_task("stage1"), load_train(["num_envs=3", "workers=2", "main_envs=1"]))
+    try:
+        assert env.blocks == [range(0, 1), range(1, 3)]
+    finally:
+        env.close()

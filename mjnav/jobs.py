@@ -1,0 +1,50 @@
+"""Facts about the job this process runs in: the CPUs it may use and folder names that never collide.
+
+A process of a job array (SLURM, Ray, a shell loop) may start in the same second as its siblings,
+on the same shared file system, with fewer CPUs than the machine has. Worker counts therefore come
+from the CPU affinity mask (:func:`usable_cores`), and folders named by time carry a suffix unique
+to the process (:func:`unique_stamp`).
+
+This module is a bottom layer: it imports nothing from mjnav.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import time
+
+__all__ = ["ARRAY_TASK_ENV", "unique_stamp", "usable_cores"]
+
+#: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
+ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
+#: The stamps this process has handed out (two calls in one second differ too).
+_ISSUED: set[str] = set()
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on: its affinity mask where the OS has one, else ``os.cpu_count()``."""
+    if hasattr(os, "sched_getaffinity"):
+        try:
+            return max(1, len(os.sched_getaffinity(0)))
+        except OSError:
+            pass
+    return os.cpu_count() or 1
+
+
+def unique_stamp(now: float | None = None) -> str:
+    """``YYYYmmdd-HHMMSS[-a<array task>]-<pid>-<4 hex>``: a time stamp no other process gets.
+
+    The local time (``now``, seconds since the epoch; default: now), the job array's task id when
+    :data:`ARRAY_TASK_ENV` is set, this process's id and 16 random bits (never one this process already handed out), so two runs started in the
+    same second (one job array on many nodes, or two processes on one) never share a folder.
+    """
+    parts = [time.strftime("%Y%m%d-%H%M%S", time.localtime(now))]
+    array_task = os.environ.get(ARRAY_TASK_ENV, "").strip()
+    if array_task.isalnum():
+        parts.append(f"a{array_task}")
+    parts.append(str(os.getpid()))
+    while (stamp := "-".join([*parts, secrets.token_hex(2)])) in _ISSUED:  # this process's earlier stamps
+        pass
+    _ISSUED.add(stamp)
+    return stamp

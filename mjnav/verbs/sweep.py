@@ -1,0 +1,357 @@
+"""``mjnav sweep``: a grid of training runs, each followed by its held-out evaluation, and one table.
+
+    mjnav sweep task=stage2 grid=task.design=design1,design2 seeds=0,1,2 train.iterations=50 episodes=100
+
+The grid: each ``grid=KEY=V1,V2,...`` is one axis (``KEY`` a ``task.*``/``train.*`` override key or
+the short form ``<section>.<field>``; repeat ``grid=`` for more axes; a value may not contain a
+comma), and ``seeds=`` is the last axis (``train.seed``). Every other ``task.*``/``train.*`` key is
+given to every run. A cell is one combination: ``mjnav train`` in ``<out>/<cell>/`` (its run folder
+inside, ``train.log`` beside it), then ``mjnav evaluate policy=<run folder> episodes=N`` into
+``<out>/<cell>/eval/`` (the run's own task overrides, so the evaluation is of what was trained),
+then ``<out>/<cell>/result.json``. A cell with a ``result.json`` is done and skipped when the sweep is
+started again (resume after a kill, or widen the grid in the same ``out``); a failed cell writes
+``failed.json`` with its log, the rest go on, and the sweep exits with 1.
+
+Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
+tasks (``backend=ray``, ``address=`` for a running cluster; ``out`` must then be on a file system
+every node sees), each task reserving ``cpus_per_run`` CPUs.
+
+The table (``<out>/sweep.md`` and ``<out>/sweep.json``): one row per grid point, with the mean over
+seeds and its 95 % Student-t interval (:func:`mjnav.eval.intervals.mean_interval`) of success,
+collision and timeout rates, time to goal and path length (:data:`HEADLINE`).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import itertools
+import json
+import math
+import re
+import subprocess
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from mjnav.args import ArgsError, Grammar, Parsed
+from mjnav.eval.intervals import mean_interval
+from mjnav.jobs import usable_cores
+from mjnav.schema import ConfigError
+
+__all__ = ["HEADLINE", "Cell", "SweepOptions", "cells", "grammar", "run", "run_cell", "table"]
+
+#: The summary columns the table shows: (key, label, percent?).
+HEADLINE: tuple[tuple[str, str, bool], ...] = (
+    ("success_rate", "Success (%)", True),
+    ("collision_rate", "Collision (%)", True),
+    ("timeout_rate", "Timeout (%)", True),
+    ("time_s", "Time (s)", False),
+    ("distance_m", "Distance (m)", False),
+)
+#: Where cells run: ``backend=NAME`` → ``runner(cells, options)`` yielding each cell's result as it ends.
+BACKENDS: dict[str, Callable[[Sequence[Cell], SweepOptions], Iterator[dict[str, Any]]]] = {}
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepOptions:
+    """The ``sweep`` verb's own keys (``mjnav sweep --help``).
+
+    Attributes:
+        task: Stage or task YAML every run trains and is evaluated on.
+        grid: One axis ``KEY=V1,V2,...`` (a ``task.*``/``train.*`` override key); repeat for more axes.
+        seeds: Comma-separated ``train.seed`` values: the runs whose mean and interval a row shows.
+        episodes: Held-out evaluation episodes per run.
+        start: ``mjnav train start=`` of every run (``scratch``, ``auto``, ``shipped``, ``curriculum``).
+        out: Sweep folder: one folder per cell, ``sweep.md`` and ``sweep.json`` (default ``sweeps/<task>``).
+        workers: Evaluation worker processes per run (default: the CPU cores this process may use).
+        backend: ``local`` (cells one after another here) or ``ray`` (cells as Ray tasks).
+        address: Ray cluster to join with ``backend=ray`` (``auto``, ``HOST:6379``); default: a local Ray.
+        cpus_per_run: CPUs a Ray task of one cell reserves (``backend=ray``); its training and evaluation use that many.
+    """
+
+    task: str = "stage2"
+    grid: str | None = None
+    seeds: str = "0,1,2"
+    episodes: int = 100
+    start: str = "scratch"
+    out: str | None = None
+    workers: int | None = None
+    backend: str = "local"
+    address: str | None = None
+    cpus_per_run: int = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class Cell:
+    """One training run of the grid and its evaluation.
+
+    Attributes:
+        point: The grid point: ``(KEY, value)`` per axis, in the order the axes were given.
+        seed: ``train.seed``.
+        folder: ``<out>/<cell name>``.
+        train: ``mjnav train`` arguments (without ``out=``).
+        evaluate: ``mjnav evaluate`` arguments other than ``policy=`` and ``out=``.
+    """
+
+    point: tuple[tuple[str, str], ...]
+    seed: int
+    folder: Path
+    train: tuple[str, ...]
+    evaluate: tuple[str, ...]
+
+
+def grammar() -> Grammar:
+    """:class:`SweepOptions`, ``task.*`` and ``train.*`` overrides given to every run."""
+    # deferred: mjnav.config ~0.3 s (numba, scipy, osqp), not needed by `mjnav --help`
+    from mjnav.config import TASK_SECTIONS
+
+    return Grammar(SweepOptions, ("task", "train"), {}, TASK_SECTIONS)
+
+
+def _axes(argv: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """``[(KEY, [values])]`` of every ``grid=KEY=V1,V2`` token (the grammar keeps only the last one)."""
+    axes = []
+    for token in argv:
+        key, _, axis = token.partition("=")
+        if key.strip() != "grid":
+            continue
+        name, sep, values = axis.partition("=")
+        listed = [v.strip() for v in values.split(",") if v.strip()]
+        if not sep or not name.strip() or not listed:
+            raise ArgsError(f"grid: expected KEY=V1,V2,... (grid=task.design=design1,design2), got {axis!r}")
+        axes.append((name.strip(), listed))
+    if len({k for k, _ in axes}) < len(axes):
+        raise ArgsError("grid: an override key is given twice")
+    return axes
+
+
+def _name(point: Sequence[tuple[str, str]], seed: int) -> str:
+    """A cell's folder name: ``design-design1_seed-0`` (each key's last part, unsafe characters as -)."""
+    parts = [f"{key.rpartition('.')[2]}-{value}" for key, value in point] + [f"seed-{seed}"]
+    return re.sub(r"[^A-Za-z0-9.+_-]", "-", "_".join(parts))
+
+
+def cells(parsed: Parsed, argv: Sequence[str]) -> list[Cell]:
+    """Every cell of the grid, each checked by ``mjnav train``'s grammar before anything runs.
+
+    Raises:
+        ConfigError: A malformed ``grid=`` or ``seeds=``, or a run the train grammar refuses
+            (unknown key, bad value), named.
+    """
+    # deferred: mjnav.train.session imports torch and the environments, not needed by `mjnav sweep --help`
+    from mjnav.train.session import parse_args, plan_run
+
+    opts: SweepOptions = parsed.options
+    try:
+        seeds = [int(s) for s in opts.seeds.split(",") if s.strip()]
+    except ValueError:
+        raise ArgsError(f"seeds: expected comma-separated integers, got {opts.seeds!r}") from None
+    if not seeds or opts.episodes < 1 or opts.cpus_per_run < 1:
+        raise ArgsError("seeds: at least one; episodes and cpus_per_run: >= 1")
+    axes, out = _axes(argv), Path(opts.out or Path("sweeps") / Path(opts.task).stem)
+    fixed = [*(f"task.{o}" for o in parsed.task), *(f"train.{o}" for o in parsed.train)]
+    workers = usable_cores() if opts.workers is None else opts.workers
+    if opts.backend == "ray":  # a cell uses the CPUs its task reserves, no more (see _reserved)
+        fixed += _reserved(parsed.train, opts.cpus_per_run)
+        workers = opts.cpus_per_run if opts.workers is None else opts.workers
+    found = []
+    for values in itertools.product(*(v for _, v in axes)):
+        point = tuple(zip((k for k, _ in axes), values))
+        for seed in seeds:
+            train = (f"task={opts.task}", f"start={opts.start}", *fixed, *(f"{k}={v}" for k, v in point),
+                     f"seed={seed}")
+            plan_run(parse_args(train))  # resolves the task and PPO configs: a bad key or value fails here
+            evaluate = (f"task={opts.task}", f"episodes={opts.episodes}", f"workers={workers}")
+            found.append(Cell(point, seed, out / _name(point, seed), train, evaluate))
+    return found
+
+
+def _reserved(train: Sequence[str], cpus: int) -> list[str]:
+    """``train.workers``/``train.update_threads`` of a Ray cell that the command left to their defaults.
+
+    Their defaults take every core of the node; with several cells on one node the PPO update's
+    OpenMP threads then spin against the other cells' processes. Measured on the 2-core box under
+    load (about 7 runnable processes): 28-45 s per stage-1 update of 2,048 transitions with the
+    default against 0.9-1.0 s with ``train.update_threads=1``.
+    """
+    given = {o.split("=", 1)[0] for o in train}
+    return [f"train.{key}={cpus}" for key in ("workers", "update_threads") if key not in given]
+
+
+# ---------------------------------------------------------------------------- one cell
+
+def _mjnav(args: Sequence[str], log: Path) -> int:
+    """``python -m mjnav ARGS`` in a child process (this interpreter), output appended to ``log``."""
+    with open(log, "a", encoding="utf-8") as f:
+        f.write(f"$ {sys.executable} -m mjnav {' '.join(args)}\n")
+        f.flush()
+        return subprocess.run([sys.executable, "-m", "mjnav", *args], stdout=f, stderr=subprocess.STDOUT,
+                              check=False).returncode
+
+
+def _run_folder(folder: Path) -> Path | None:
+    """The newest run folder (one with ``policy.pt``) under a cell's folder."""
+    runs = sorted((p for p in folder.iterdir() if (p / "policy.pt").is_file()), key=lambda p: p.stat().st_mtime)
+    return runs[-1] if runs else None
+
+
+def _summary(path: Path) -> dict[str, Any]:
+    """The first row of an evaluation's ``summary.csv``, numbers as floats."""
+    with open(path, encoding="utf-8") as f:
+        row = next(csv.DictReader(f))
+    out: dict[str, Any] = {}
+    for key, value in row.items():
+        try:
+            out[key] = float(value) if value != "" else math.nan
+        except ValueError:
+            out[key] = value
+    return out
+
+
+def run_cell(cell: Cell) -> dict[str, Any]:
+    """Train and evaluate one cell (skipped when its ``result.json`` exists); returns its result.
+
+    The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``run`` (run folder),
+    ``summary`` (the evaluation's summary row), or ``failed`` (which step) and ``log``.
+    """
+    done = cell.folder / "result.json"
+    if done.is_file():
+        return json.loads(done.read_text(encoding="utf-8"))
+    cell.folder.mkdir(parents=True, exist_ok=True)
+    (cell.folder / "failed.json").unlink(missing_ok=True)
+    head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed}
+    log = cell.folder / "train.log"
+    run_dir = None
+    if _mjnav(["train", *cell.train, f"out={cell.folder}"], log) == 0:
+        run_dir = _run_folder(cell.folder)
+    if run_dir is None:
+        return _failed(cell, head, "train", log)
+    log = cell.folder / "eval.log"
+    if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
+        return _failed(cell, head, "evaluate", log)
+    result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
+    done.write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    return result
+
+
+def _failed(cell: Cell, head: dict[str, Any], step: str, log: Path) -> dict[str, Any]:
+    result = {**head, "failed": step, "log": str(log)}
+    (cell.folder / "failed.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    return result
+
+
+def _local(todo: Sequence[Cell], _: SweepOptions) -> Iterator[dict[str, Any]]:
+    """Cells one after another on this machine."""
+    for cell in todo:
+        yield run_cell(cell)
+
+
+def _ray(todo: Sequence[Cell], opts: SweepOptions) -> Iterator[dict[str, Any]]:
+    """Cells as plain Ray tasks of ``cpus_per_run`` CPUs, yielded as they end."""
+    try:
+        import ray  # deferred: an optional extra (pip install mjnav[ray]), only for backend=ray
+    except ImportError:
+        raise ConfigError("backend=ray needs Ray: pip install 'mjnav[ray]'") from None
+    started = not ray.is_initialized()
+    if started:
+        if opts.address is not None:
+            ray.init(address=opts.address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=max(opts.cpus_per_run, usable_cores()), include_dashboard=False, log_to_driver=False)
+    try:
+        task = ray.remote(num_cpus=opts.cpus_per_run, max_retries=0)(run_cell)
+        pending = [task.remote(cell) for cell in todo]
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(done[0])
+    finally:
+        if started:
+            ray.shutdown()
+
+
+BACKENDS.update(local=_local, ray=_ray)
+
+
+# ---------------------------------------------------------------------------- the table
+
+def table(results: Sequence[dict[str, Any]], keys: Sequence[str]) -> list[dict[str, Any]]:
+    """One row per grid point: its values, the seeds that finished, and mean/lo/hi of :data:`HEADLINE`."""
+    groups: dict[tuple[str, ...], list[dict[str, Any]]] = {}
+    for result in results:
+        groups.setdefault(tuple(result["point"][k] for k in keys), []).append(result)
+    rows = []
+    for values, members in groups.items():
+        ok = [m for m in members if "summary" in m]
+        row: dict[str, Any] = {**dict(zip(keys, values)), "seeds": sorted(m["seed"] for m in ok),
+                               "failed": sorted(m["seed"] for m in members if "failed" in m)}
+        for key, _, _ in HEADLINE:
+            mean, lo, hi = mean_interval([m["summary"].get(key, math.nan) for m in ok])
+            row.update({key: mean, f"{key}_lo": lo, f"{key}_hi": hi})
+        rows.append(row)
+    return rows
+
+
+def _cell_text(row: dict[str, Any], key: str, percent: bool) -> str:
+    scale = 100.0 if percent else 1.0
+    mean, lo, hi = (row[k] * scale for k in (key, f"{key}_lo", f"{key}_hi"))
+    if math.isnan(mean):
+        return "–"
+    digits = 1 if percent else 2
+    return f"{mean:.{digits}f}" if math.isnan(lo) else f"{mean:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+
+def format_table(rows: Sequence[dict[str, Any]], keys: Sequence[str]) -> str:
+    """A markdown table of :func:`table` rows: mean [95 % interval] over seeds."""
+    header = [*keys, "seeds", *(label for _, label, _ in HEADLINE)]
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    for row in rows:
+        seeds = ",".join(map(str, row["seeds"])) + (f" ({len(row['failed'])} failed)" if row["failed"] else "")
+        cells_ = [*(str(row[k]) for k in keys), seeds, *(_cell_text(row, k, p) for k, _, p in HEADLINE)]
+        lines.append("| " + " | ".join(cells_) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _no_nan(value: Any) -> Any:
+    """``value`` with NaN floats as None (strict JSON)."""
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _no_nan(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_no_nan(v) for v in value]
+    return value
+
+
+# ---------------------------------------------------------------------------- the verb
+
+def run(parsed: Parsed, argv: list[str]) -> int:
+    """Run the grid's missing cells, write and print the table; 0 when every cell finished, else 1."""
+    opts: SweepOptions = parsed.options
+    try:
+        if opts.backend not in BACKENDS:
+            raise ConfigError(f"backend: expected one of {', '.join(BACKENDS)}, got {opts.backend!r}")
+        if opts.address is not None and opts.backend != "ray":
+            raise ConfigError("address: a Ray cluster address; needs backend=ray")
+        todo = cells(parsed, argv)
+        keys = [k for k, _ in todo[0].point]
+        out = todo[0].folder.parent
+        results = []
+        for result in BACKENDS[opts.backend](todo, opts):
+            state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else "done"
+            print(f"sweep: {result['cell']}: {state}", file=sys.stderr, flush=True)
+            results.append(result)
+    except ConfigError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    order = {cell.folder.name: k for k, cell in enumerate(todo)}  # the grid's order, not the finishing order
+    results.sort(key=lambda r: order[r["cell"]])
+    rows = table(results, keys)
+    text = format_table(rows, keys)
+    (out / "sweep.md").write_text(text, encoding="utf-8")
+    record = {"task": opts.task, "axes": keys, "episodes": opts.episodes, "rows": rows, "runs": results}
+    (out / "sweep.json").write_text(json.dumps(_no_nan(record), indent=1) + "\n", encoding="utf-8")
+    print(text, end="")
+    print(f"wrote {out}/sweep.md and {out}/sweep.json")
+    return 1 if any("failed" in r for r in results) else 0

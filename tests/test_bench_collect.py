@@ -1,0 +1,50 @@
+"""mjnav.bench.collect (``mjnav bench collect``): the collection profile adds up and prints the ratios."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mjnav.bench import collect
+from mjnav.cli import main
+from mjnav.config import load_task
+from mjnav.train.config import load_train
+
+TINY = ["num_envs=4", "steps_per_env=4", "epochs=1", "minibatches=1", "update_threads=1"]
+
+
+def test_step_parts_add_up_to_the_collection_time(tmp_path) -> None:
+    """The parts of a rollout step add up to rsl-rl's collection time; the worker process is timed."""
+    train = dataclasses.replace(load_train(TINY), workers=2)
+    bench = collect.CollectBench(load_task("stage1"), train, str(tmp_path))
+    try:
+        assert bench.iterations == 0 and not bench.seconds  # the warm-up iteration is not counted
+        assert bench.block() == 16
+        parts = bench.step_parts()
+    finally:
+        bench.close()
+    assert list(parts) == list(collect.STEP_PARTS)
+    assert bench.seconds["steps"] == 4
+    assert np.isclose(sum(parts.values()), 1e3 * bench.seconds["collection"] / 4)
+    assert parts["policy"] > 0 and parts["own block"] > 0 and bench.seconds["worker_step"] > 0
+    assert bench.seconds["update"] > 0
+    trainer, worker, rate = bench.cpu_estimate()
+    assert 0 < trainer <= 1e3 * bench.seconds["collection"] / 4 * 1.5 and worker > 0
+    assert np.isclose(rate, 1e3 * 4 / max(trainer, worker))
+
+
+def test_cli_prints_rates_ratios_and_parts(capsys: pytest.CaptureFixture) -> None:
+    argv = ["bench", "collect", "task=stage1", "workers=1,2", "main_envs=-1,1", "rounds=1", "single_steps=5",
+            *(f"train.{t}" for t in TINY)]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert out.count("| 1 | ") == 4 and out.count("| 2 | ") == 4 and out.count("| 2, main 1 | ") == 4  # four tables
+    assert "x one environment" in out and "PPO update" in out and "estimate on cores of their own" in out
+
+
+@pytest.mark.parametrize(("arg", "key"), [("workers=1,0", "workers"), ("main_envs=x", "main_envs"),
+                                          ("main_envs=64", "main_envs")])
+def test_bad_list_is_one_error_line(capsys: pytest.CaptureFixture, arg: str, key: str) -> None:
+    assert main(["bench", "collect", arg]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and key in err

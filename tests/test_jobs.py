@@ -1,0 +1,67 @@
+"""Job facts (:mod:`mjnav.jobs`): worker counts follow the CPU affinity mask, and folders named by
+time never collide between processes of a job array."""
+
+from __future__ import annotations
+
+import os
+import re
+
+import pytest
+
+from mjnav import jobs
+
+
+@pytest.fixture
+def three_cores(monkeypatch: pytest.MonkeyPatch) -> None:
+    """This process may run on 3 CPUs of a larger machine."""
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 2, 5}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+
+
+def test_usable_cores_is_the_affinity_mask(three_cores) -> None:
+    assert jobs.usable_cores() == 3
+
+
+def test_usable_cores_falls_back_to_cpu_count(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delattr(os, "sched_getaffinity", raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 7)
+    assert jobs.usable_cores() == 7
+
+
+def test_evaluate_and_tables_default_workers_to_the_affinity(three_cores, monkeypatch, tmp_path) -> None:
+    from mjnav.eval.runner import parse_args
+
+    specs, _, _ = parse_args(["policy=mpc_goal", "task=stage1", "episodes=1"])
+    assert specs[0].workers == 3
+    from mjnav.envs.workers import _default_workers
+
+    assert _default_workers(16) == 3 and _default_workers(2) == 2
+
+    seen = {}
+    from mjnav.verbs import tables
+
+    monkeypatch.setattr(tables, "table_rows", lambda *a, **k: seen.setdefault("workers", a[4]) and [])
+    monkeypatch.setattr(tables, "format_table", lambda *a, **k: "")
+    from mjnav.args import parse
+
+    tables.run(parse([f"out={tmp_path}"], tables.grammar()), [])
+    assert seen["workers"] == 3
+
+
+def test_stamps_are_unique_and_readable(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(jobs.ARRAY_TASK_ENV, raising=False)
+    stamps = {jobs.unique_stamp(now=0.0) for _ in range(200)}
+    assert len(stamps) == 200  # the same second, one process: the random part differs
+    assert all(re.fullmatch(rf"\d{{8}}-\d{{6}}-{os.getpid()}-[0-9a-f]{{4}}", s) for s in stamps)
+    monkeypatch.setenv(jobs.ARRAY_TASK_ENV, "17")
+    assert f"-a17-{os.getpid()}-" in jobs.unique_stamp()
+
+
+def test_two_runs_started_in_one_second_get_two_folders(monkeypatch: pytest.MonkeyPatch, tmp_path) -> None:
+    from mjnav.train import session
+
+    monkeypatch.setattr(jobs.time, "time", lambda: 1.8e9)
+    args = session.parse_args(["task=stage1", f"out={tmp_path}"])
+    first, second = session.plan_run(args).run_dir, session.plan_run(args).run_dir
+    assert first != second and first.parent == second.parent == tmp_path
+    assert first.name.startswith("stage1-") and re.search(r"-\d{8}-\d{6}-", first.name)

@@ -1,0 +1,142 @@
+"""``mjnav sweep``: the grid's cells (overrides × seeds), each trained then evaluated in its own
+folder, one table with the mean and 95 % interval over seeds, done cells skipped on a restart."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from mjnav.args import parse
+from mjnav.cli import main
+from mjnav.jobs import usable_cores
+from mjnav.verbs import sweep
+
+TINY = ["task=stage1", "train.iterations=1", "train.num_envs=2", "train.steps_per_env=8", "train.workers=0",
+        "train.epochs=1", "train.minibatches=1", "train.policy.actor_hidden_dims=[16,16,16]",
+        "train.policy.critic_hidden_dims=[16,16,16]", "timing.episode_steps=20", "episodes=2", "workers=1"]
+
+
+def _cells(argv: list[str]) -> list[sweep.Cell]:
+    return sweep.cells(parse(argv, sweep.grammar()), argv)
+
+
+def test_the_grid_is_every_combination_checked_before_any_run(tmp_path: Path) -> None:
+    argv = ["task=stage2", "grid=task.design=design1,design2", "grid=train.entropy=0.005,0.01", "seeds=0,1,2",
+            "crowd.count=3", f"out={tmp_path}"]
+    cells = _cells(argv)
+    assert len(cells) == 2 * 2 * 3
+    first = cells[0]
+    assert first.point == (("task.design", "design1"), ("train.entropy", "0.005")) and first.seed == 0
+    assert first.folder == tmp_path / "design-design1_entropy-0.005_seed-0"
+    assert first.train == ("task=stage2", "start=scratch", "task.crowd.count=3", "task.design=design1",
+                           "train.entropy=0.005", "seed=0")
+    assert first.evaluate == ("task=stage2", "episodes=100", f"workers={usable_cores()}")
+    assert len({c.folder for c in cells}) == len(cells)
+
+
+def test_a_ray_cell_uses_only_the_cpus_it_reserves(tmp_path: Path) -> None:
+    argv = ["task=stage2", "seeds=0", "backend=ray", "cpus_per_run=2", f"out={tmp_path}"]
+    cell = _cells(argv)[0]
+    assert cell.train[-3:-1] == ("train.workers=2", "train.update_threads=2")
+    assert cell.evaluate[-1] == "workers=2"
+    given = _cells([*argv, "train.update_threads=1", "workers=3"])[0]
+    assert "train.update_threads=1" in given.train and "train.update_threads=2" not in given.train
+    assert "train.workers=2" in given.train and given.evaluate[-1] == "workers=3"
+
+
+@pytest.mark.parametrize(("token", "message"), [
+    ("grid=task.design", "grid: expected KEY=V1,V2"),
+    ("grid=task.desing=design1", "desing"),
+    ("grid=train.entropy=high", "entropy"),
+    ("seeds=a,b", "seeds: expected comma-separated integers"),
+    ("backend=slurm", "backend: expected one of local, ray"),
+    ("address=auto", "address: a Ray cluster address; needs backend=ray"),
+])
+def test_a_bad_grid_is_one_error_line_and_runs_nothing(tmp_path, capsys, token, message) -> None:
+    assert main(["sweep", "task=stage1", token, f"out={tmp_path / 's'}"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and message in err
+    assert not (tmp_path / "s").exists()
+
+
+def _fake_mjnav(calls: list[list[str]], fail: str | None = None):
+    """``python -m mjnav`` stand-in: a run folder per train, a summary per evaluate (success = seed / 10)."""
+    def fake(args, log: Path) -> int:
+        calls.append(list(args))
+        log.write_text("fake\n")
+        if fail and any(fail in a for a in args):
+            return 1
+        values = dict(a.split("=", 1) for a in args[1:])
+        if args[0] == "train":
+            run = Path(values["out"]) / f"stage1-{len(calls)}"
+            run.mkdir(parents=True)
+            (run / "policy.pt").write_bytes(b"")
+            (run / "seed").write_text(values["seed"])
+        else:
+            seed = int((Path(values["policy"]) / "seed").read_text())
+            (Path(values["out"])).mkdir(parents=True)
+            (Path(values["out"]) / "summary.csv").write_text(
+                f"task,policy,success_rate,collision_rate,timeout_rate,time_s,distance_m\n"
+                f"stage1,x,{seed / 10},0.1,{0.9 - seed / 10},,5.0\n")
+        return 0
+    return fake
+
+
+def test_table_means_and_intervals_over_seeds_and_restart_skips_done(tmp_path, monkeypatch, capsys) -> None:
+    calls: list[list[str]] = []
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls))
+    argv = ["sweep", "task=stage1", "grid=train.entropy=0.005,0.01", "seeds=1,2,3", f"out={tmp_path}"]
+    assert main(argv) == 0
+    assert len(calls) == 2 * 3 * 2  # train + evaluate per cell
+    record = json.loads((tmp_path / "sweep.json").read_text())
+    row = record["rows"][0]
+    assert row["train.entropy"] == "0.005" and row["seeds"] == [1, 2, 3] and row["failed"] == []
+    assert row["success_rate"] == pytest.approx(0.2)
+    half = 4.302652729911275 * 0.1 / math.sqrt(3)  # t(0.975, 2) * s / sqrt(n)
+    assert (row["success_rate_lo"], row["success_rate_hi"]) == pytest.approx((0.2 - half, 0.2 + half))
+    assert row["time_s"] is None  # no value: null in the JSON, "–" in the table
+    table = (tmp_path / "sweep.md").read_text()
+    assert "| train.entropy | seeds | Success (%) |" in table
+    assert f"| 0.005 | 1,2,3 | 20.0 [{100 * (0.2 - half):.1f}, {100 * (0.2 + half):.1f}] |" in table
+    assert table in capsys.readouterr().out
+    # started again: every cell is done, nothing runs, the same table
+    calls.clear()
+    assert main(argv) == 0 and calls == []
+    assert (tmp_path / "sweep.md").read_text() == table
+
+
+def test_a_failed_cell_is_recorded_and_the_others_go_on(tmp_path, monkeypatch, capsys) -> None:
+    calls: list[list[str]] = []
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls, fail="seed=2"))
+    assert main(["sweep", "task=stage1", "seeds=1,2,3", f"out={tmp_path}"]) == 1
+    failed = json.loads((tmp_path / "seed-2" / "failed.json").read_text())
+    assert failed["failed"] == "train" and failed["log"].endswith("train.log")
+    assert (tmp_path / "seed-3" / "result.json").is_file()
+    assert "| 1,3 (1 failed) |" in (tmp_path / "sweep.md").read_text()
+    assert "seed-2: failed in train" in capsys.readouterr().err
+    # the failed cell runs again on a restart (and only it)
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    assert main(["sweep", "task=stage1", "seeds=1,2,3", f"out={tmp_path}"]) == 0
+    assert [c[0] for c in calls] == ["train", "evaluate"] and not (tmp_path / "seed-2" / "failed.json").exists()
+
+
+def test_a_real_tiny_sweep_trains_evaluates_and_resumes(tmp_path, capsys) -> None:
+    argv = ["sweep", *TINY, "seeds=0,1", f"out={tmp_path}"]
+    assert main(argv) == 0
+    for seed in (0, 1):
+        result = json.loads((tmp_path / f"seed-{seed}" / "result.json").read_text())
+        assert result["seed"] == seed and result["summary"]["episodes"] == 2
+        assert Path(result["run"]).parent == tmp_path / f"seed-{seed}"
+        assert (tmp_path / f"seed-{seed}" / "eval" / "stage1.jsonl").is_file()
+    assert "| 0,1 |" in (tmp_path / "sweep.md").read_text()
+    runs = sorted(tmp_path.glob("seed-*/stage1-*"))
+    assert main(argv) == 0 and sorted(tmp_path.glob("seed-*/stage1-*")) == runs  # nothing trained again
+
+
+def test_cells_as_ray_tasks(tmp_path) -> None:
+    pytest.importorskip("ray")
+    assert main(["sweep", *TINY, "seeds=0", "backend=ray", f"out={tmp_path}"]) == 0
+    assert json.loads((tmp_path / "seed-0" / "result.json").read_text())["summary"]["episodes"] == 2
