@@ -25,11 +25,13 @@ def rate_with_interval(name: str, hits: int, n: int) -> dict[str, float]:
     return {name: hits / n if n > 0 else math.nan, f"{name}_lo": lo, f"{name}_hi": hi}
 
 
-def mean_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+def mean_interval(values: Sequence[float], level: float = 0.95,
+                  bounds: tuple[float, float] = (-math.inf, math.inf)) -> tuple[float, float, float]:
     """Mean of ``values`` (one per seed) and its Student-t interval: ``(mean, lo, hi)``.
 
-    ``mean ± t_{(1+level)/2, n-1} · s / sqrt(n)`` with the sample standard deviation ``s``; the
-    interval is (nan, nan) for fewer than two values, the mean nan for none. NaN values are dropped.
+    ``mean ± t_{(1+level)/2, n-1} · s / sqrt(n)`` with the sample standard deviation ``s``, clipped to
+    ``bounds`` (the values' range: [0, 1] for a rate, [0, inf) for a time); the interval is
+    (nan, nan) for fewer than two values, the mean nan for none. NaN values are dropped.
     """
     kept = [float(v) for v in values if not math.isnan(float(v))]
     n = len(kept)
@@ -41,4 +43,4 @@ def mean_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, 
     from scipy.stats import t  # deferred: scipy.stats ~0.3 s, only for intervals over seeds (mjnav sweep)
 
     half = float(t.ppf((1 + level) / 2, n - 1)) * math.sqrt(sum((v - mean) ** 2 for v in kept) / (n - 1) / n)
-    return mean, mean - half, mean + half
+    return mean, max(mean - half, bounds[0]), min(mean + half, bounds[1])

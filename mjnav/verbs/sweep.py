@@ -286,8 +286,9 @@ def table(results: Sequence[dict[str, Any]], keys: Sequence[str]) -> list[dict[s
         ok = [m for m in members if "summary" in m]
         row: dict[str, Any] = {**dict(zip(keys, values)), "seeds": sorted(m["seed"] for m in ok),
                                "failed": sorted(m["seed"] for m in members if "failed" in m)}
-        for key, _, _ in HEADLINE:
-            mean, lo, hi = mean_interval([m["summary"].get(key, math.nan) for m in ok])
+        for key, _, percent in HEADLINE:  # rates lie in [0, 1], times and lengths in [0, inf)
+            values = [m["summary"].get(key, math.nan) for m in ok]
+            mean, lo, hi = mean_interval(values, bounds=(0.0, 1.0 if percent else math.inf))
             row.update({key: mean, f"{key}_lo": lo, f"{key}_hi": hi})
         rows.append(row)
     return rows

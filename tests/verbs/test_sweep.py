@@ -96,11 +96,11 @@ def test_table_means_and_intervals_over_seeds_and_restart_skips_done(tmp_path, m
     assert row["train.entropy"] == "0.005" and row["seeds"] == [1, 2, 3] and row["failed"] == []
     assert row["success_rate"] == pytest.approx(0.2)
     half = 4.302652729911275 * 0.1 / math.sqrt(3)  # t(0.975, 2) * s / sqrt(n)
-    assert (row["success_rate_lo"], row["success_rate_hi"]) == pytest.approx((0.2 - half, 0.2 + half))
+    assert (row["success_rate_lo"], row["success_rate_hi"]) == pytest.approx((max(0.2 - half, 0.0), 0.2 + half))  # a rate stops at 0
     assert row["time_s"] is None  # no value: null in the JSON, "–" in the table
     table = (tmp_path / "sweep.md").read_text()
     assert "| train.entropy | seeds | Success (%) |" in table
-    assert f"| 0.005 | 1,2,3 | 20.0 [{100 * (0.2 - half):.1f}, {100 * (0.2 + half):.1f}] |" in table
+    assert f"| 0.005 | 1,2,3 | 20.0 [{100 * max(0.2 - half, 0.0):.1f}, {100 * (0.2 + half):.1f}] |" in table
     assert table in capsys.readouterr().out
     # started again: every cell is done, nothing runs, the same table
     calls.clear()
