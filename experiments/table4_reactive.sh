@@ -15,17 +15,26 @@
 #
 # usage: PYTHONPATH=<checkout> experiments/table4_reactive.sh [OUT] [EPISODES] [WORKERS]
 # tables: experiments/table4_reactive.sh tables [OUT] [EPISODES]
+# Environment: CROWDS (default "orca social_force"), STAGES ("stage5 stage6 stage7"), METHODS
+# ("ours mpc_goal dwa teb": which to run), REACTIVE (true; false = the non-reactive control of the
+# social metrics, same crowds and episodes, under <out>/<crowd>_nonreactive/), PYTHON (python).
 set -u
 PY=${PYTHON:-python}
 CROWDS=${CROWDS:-"orca social_force"}
 STAGES=${STAGES:-"stage5 stage6 stage7"}
+METHODS=${METHODS:-"ours mpc_goal dwa teb"}
+REACTIVE=${REACTIVE:-true}
+SUFFIX=""
+[ "$REACTIVE" = true ] || SUFFIX="_nonreactive"
+
+wanted() { case " $METHODS " in *" $1 "*) return 0;; *) return 1;; esac; }
 
 tables() {  # the tables from what is there (unfinished runs as "n of N"), one per crowd model
     local out=$1 episodes=$2 crowd
     for crowd in $CROWDS; do
-        echo "### crowd.model=$crowd, crowd.reactive=true"
+        echo "### crowd.model=$crowd, crowd.reactive=$REACTIVE"
         echo
-        "$PY" -m mjnav tables table=4 out="$out/$crowd" episodes="$episodes" run=false planners=mpc_goal,dwa \
+        "$PY" -m mjnav tables table=4 out="$out/$crowd$SUFFIX" episodes="$episodes" run=false planners=mpc_goal,dwa \
             social=true
         echo
     done
@@ -33,16 +42,16 @@ tables() {  # the tables from what is there (unfinished runs as "n of N"), one p
 
 one() {  # one evaluation: crowd, slug, policy, stage, rule
     local crowd=$1 slug=$2 policy=$3 stage=$4 rule=$5
-    local dir="$OUT/$crowd/$slug" log="$OUT/logs/${crowd}_${slug}_${stage}_${rule}.log"
+    local dir="$OUT/$crowd$SUFFIX/$slug" log="$OUT/logs/${crowd}${SUFFIX}_${slug}_${stage}_${rule}.log"
     if [ -f "$dir/${stage}_${rule}.jsonl" ]; then return 0; fi
     mkdir -p "$dir/contact" "$OUT/logs"
     local extra=()
     if [ "$rule" = scan ]; then extra=(from_contact="$dir/contact"); fi
-    echo "$(date -u +%FT%TZ) start $crowd $slug $stage $rule" >> "$OUT/logs/driver.log"
+    echo "$(date -u +%FT%TZ) start $crowd$SUFFIX $slug $stage $rule" >> "$OUT/logs/driver.log"
     "$PY" -m mjnav evaluate task="$stage" policy="$policy" episodes="$EPISODES" workers="$WORKERS" out="$dir" \
-        task.collision="$rule" task.crowd.model="$crowd" task.crowd.reactive=true "${extra[@]}" >> "$log" 2>&1
+        task.collision="$rule" task.crowd.model="$crowd" task.crowd.reactive="$REACTIVE" "${extra[@]}" >> "$log" 2>&1
     local rc=$?
-    echo "$(date -u +%FT%TZ) end $crowd $slug $stage $rule rc=$rc" >> "$OUT/logs/driver.log"
+    echo "$(date -u +%FT%TZ) end $crowd$SUFFIX $slug $stage $rule rc=$rc" >> "$OUT/logs/driver.log"
     [ $rc -eq 0 ] || return $rc
     if [ "$rule" = contact ]; then cp "$dir/$stage.jsonl" "$dir/${stage}_contact.jsonl" && mv "$dir/$stage.jsonl" "$dir/contact/$stage.jsonl"
     else mv "$dir/$stage.jsonl" "$dir/${stage}_scan.jsonl"; fi
@@ -61,11 +70,12 @@ EPISODES=${2:-1000}
 WORKERS=${3:-1}
 for crowd in $CROWDS; do
     for stage in $STAGES; do
-        pair "$crowd" ours "${stage}_policy" "$stage"
-        pair "$crowd" planner_mpc_goal mpc_goal "$stage"
+        wanted ours && pair "$crowd" ours "${stage}_policy" "$stage"
+        wanted mpc_goal && pair "$crowd" planner_mpc_goal mpc_goal "$stage"
     done
 done
 for planner in dwa teb; do
+    wanted $planner || continue
     slug=planner_$planner
     [ $planner = teb ] && slug=teb
     for crowd in $CROWDS; do
