@@ -7,7 +7,8 @@
 #   <out>/<crowd>/<slug>/contact/<stage>.jsonl                         contact run the paper's rule settles from
 #   <out>/logs/<crowd>_<slug>_<stage>_<rule>.log, <out>/logs/driver.log
 #
-# slugs as in `mjnav tables table=4 planners=mpc_goal,dwa`: ours, planner_mpc_goal, planner_dwa, teb.
+# slugs as in `mjnav tables table=4 planners=mpc_goal,dwa,mpc_tracked`: ours, planner_mpc_goal, planner_dwa, teb,
+# planner_mpc_tracked (issue 39: planning around the LiDAR tracks; run it with METHODS=mpc_tracked).
 # Order: cheapest first, both crowds per phase: (Ours, mpc_goal), then DWA, then TEB; per stage the
 # contact rule first, whose settled episodes the paper's rule (task.collision=scan) reuses.
 # One evaluation at a time, in this process's Python (mjnav from PYTHONPATH: run it from a pinned
@@ -34,7 +35,7 @@ tables() {  # the tables from what is there (unfinished runs as "n of N"), one p
     for crowd in $CROWDS; do
         echo "### crowd.model=$crowd, crowd.reactive=$REACTIVE"
         echo
-        "$PY" -m mjnav tables table=4 out="$out/$crowd$SUFFIX" episodes="$episodes" run=false planners=mpc_goal,dwa \
+        "$PY" -m mjnav tables table=4 out="$out/$crowd$SUFFIX" episodes="$episodes" run=false planners=mpc_goal,dwa,mpc_tracked \
             social=true
         echo
     done
@@ -74,7 +75,7 @@ for crowd in $CROWDS; do
         wanted mpc_goal && pair "$crowd" planner_mpc_goal mpc_goal "$stage"
     done
 done
-for planner in dwa teb; do
+for planner in dwa teb mpc_tracked; do
     wanted $planner || continue
     slug=planner_$planner
     [ $planner = teb ] && slug=teb
