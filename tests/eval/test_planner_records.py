@@ -99,7 +99,7 @@ def test_tables_take_planners_and_mark_privileged_ones(tmp_path):
     path.write_text(PLANNER, encoding="utf-8")
     method = planner_method(f"{path}:Brake")
     assert method.name == "brake.py:Brake" and method.slug == "planner_brake.py_Brake"
-    rows = table_rows(4, Path(tmp_path / "evals"), 5, run_missing=False, methods=["TEB"],
+    rows = table_rows(4, Path(tmp_path / "evals"), 5, run_missing=False, methods=["TEB", "mpc_crowd", "brake.py:Brake"],
                       planners=["mpc_crowd", f"{path}:Brake"])
     assert [(r["method"], r["privileged"]) for r in rows[:3]] == [
         ("TEB", False), ("mpc_crowd", True), ("brake.py:Brake", False)]
