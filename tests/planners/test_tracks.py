@@ -117,7 +117,8 @@ def test_tables_list_planners_with_and_without_tracks(tmp_path):
     method = planner_method("teb+tracks")
     assert (method.name, method.policy, method.slug, method.planner) == (
         "teb + tracks", "teb", "planner_teb_tracks", ("tracks=true",))
-    rows = table_rows(4, Path(tmp_path), 5, run_missing=False, methods=["TEB"], planners=["teb", "teb+tracks"])
+    rows = table_rows(4, Path(tmp_path), 5, run_missing=False, methods=["TEB", "teb", "teb + tracks"],
+                      planners=["teb", "teb+tracks"])
     assert [r["method"] for r in rows[:3]] == ["TEB", "teb", "teb + tracks"]
     with pytest.raises(ConfigError, match="tracks"):
         planner_method("mpc_gap+tracks")
