@@ -158,7 +158,7 @@ def _stages(options: Any) -> list[str]:
 
 def _check_names(options: Any) -> None:
     """Policy, recipe and method names of a parsed line exist."""
-    from mjnav.eval.tables import TABLES
+    from mjnav.eval.tables import TABLES, planner_method
     from mjnav.planners import PLANNERS
 
     known = {"random", *_page_names, *shipped.names(), *PLANNERS.names(),
@@ -171,7 +171,8 @@ def _check_names(options: Any) -> None:
     assert not recipe or _placeholder(recipe) or recipe in shipped.names(), f"recipe {recipe!r} is not shipped"
     methods = [m for m in str(getattr(options, "methods", "") or "").split(",") if m]
     if methods:
-        table = {m.name for m in TABLES[options.table].methods}
+        added = [planner_method(p).name for p in str(getattr(options, "planners", "") or "").split(",") if p]
+        table = {m.name for m in TABLES[options.table].methods} | set(added)
         assert set(methods) <= table, f"methods {methods}: not in table {options.table} ({sorted(table)})"
 
 
