@@ -36,8 +36,9 @@ def unique_stamp(now: float | None = None) -> str:
     """``YYYYmmdd-HHMMSS[-a<array task>]-<pid>-<4 hex>``: a time stamp no other process gets.
 
     The local time (``now``, seconds since the epoch; default: now), the job array's task id when
-    :data:`ARRAY_TASK_ENV` is set, this process's id and 16 random bits (never one this process already handed out), so two runs started in the
-    same second (one job array on many nodes, or two processes on one) never share a folder.
+    :data:`ARRAY_TASK_ENV` is set, this process's id and 16 random bits (never one this process
+    already handed out), so two runs started in the same second (one job array on many nodes, or two
+    processes on one) never share a folder.
     """
     parts = [time.strftime("%Y%m%d-%H%M%S", time.localtime(now))]
     array_task = os.environ.get(ARRAY_TASK_ENV, "").strip()

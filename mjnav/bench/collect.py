@@ -138,7 +138,8 @@ class CollectBench:
             result = step(*args, **kwargs)
             seconds, perf = self.seconds, result[3]["log"]
             seconds["env.step"] += time.perf_counter() - start
-            for key in ("own_block", "wait", "transfer", "env_step", "worker_step", "worker_step_max", "worker_cpu_max"):
+            for key in ("own_block", "wait", "transfer", "env_step", "worker_step", "worker_step_max",
+                        "worker_cpu_max"):
                 seconds[key] += perf[f"perf/{key}_ms"] / 1e3
             seconds["steps"] += 1
             return result
@@ -269,7 +270,8 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
           f"({single.min():,.0f}-{single.max():,.0f})\n")
     counts = list(collection)
     first = np.median(collection[counts[0]])
-    env_rates = {w: b.train.num_envs * b.seconds["steps"] / max(b.seconds["env.step"], 1e-9) for w, b in benches.items()}
+    env_rates = {w: b.train.num_envs * b.seconds["steps"] / max(b.seconds["env.step"], 1e-9)
+                 for w, b in benches.items()}
     print(f"| workers | collection, env steps/s | x {counts[0]} | env.step alone, env steps/s | "
           f"x {counts[0]} | x one environment | iteration incl. update, env steps/s |")
     print("|---|---|---|---|---|---|---|")

@@ -44,8 +44,10 @@ from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
 from mjnav.train.config import TrainConfig
 
-__all__ = ["EnvsInTurn", "SingleEnv", "ThroughputOptions", "VecBench", "adapter_rows", "bare_physics", "grammar", "parse_workers",
-           "run"]
+__all__ = [
+    "EnvsInTurn", "SingleEnv", "ThroughputOptions", "VecBench", "adapter_rows", "bare_physics", "grammar",
+    "parse_workers", "run"
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,7 +166,8 @@ class EnvsInTurn:
     def block(self) -> int:
         """``steps`` random-action steps of every environment (finished episodes are reset)."""
         for _ in range(self.steps):
-            for env, action in zip(self.envs, self.rng.normal(size=(len(self.envs), 4)).astype(np.float32), strict=True):
+            actions = self.rng.normal(size=(len(self.envs), 4)).astype(np.float32)
+            for env, action in zip(self.envs, actions, strict=True):
                 _, _, term, trunc, _ = env.step(action)
                 if term or trunc:
                     env.reset()
