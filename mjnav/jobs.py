@@ -10,11 +10,14 @@ This module is a bottom layer: it imports nothing from mjnav.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import time
+from collections.abc import Iterator
+from typing import Any
 
-__all__ = ["ARRAY_TASK_ENV", "unique_stamp", "usable_cores"]
+__all__ = ["ARRAY_TASK_ENV", "joined_ray", "unique_stamp", "usable_cores"]
 
 #: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
 ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
@@ -49,3 +52,24 @@ def unique_stamp(now: float | None = None) -> str:
         pass
     _ISSUED.add(stamp)
     return stamp
+
+
+@contextlib.contextmanager
+def joined_ray(ray: Any, address: str | None, num_cpus: int) -> Iterator[None]:
+    """``ray`` (the imported module) initialised for the ``with`` block, shut down after it only if
+    the block started it.
+
+    A Ray this process already started is joined as it is (a benchmark times the work alone);
+    otherwise ``address``'s cluster, or a local Ray of ``num_cpus`` CPUs without the dashboard.
+    """
+    started = not ray.is_initialized()
+    if started:
+        if address is not None:
+            ray.init(address=address, log_to_driver=False)
+        else:
+            ray.init(num_cpus=max(1, num_cpus), include_dashboard=False, log_to_driver=False)
+    try:
+        yield
+    finally:
+        if started:
+            ray.shutdown()

@@ -53,7 +53,7 @@ from mjnav.eval.metrics import (
 )
 from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
-from mjnav.jobs import usable_cores
+from mjnav.jobs import joined_ray, usable_cores
 from mjnav import shipped
 from mjnav.schema import ConfigError
 
@@ -533,13 +533,7 @@ def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, A
     except ImportError:
         raise EvalError("backend=ray needs Ray: pip install 'mjnav[ray]'") from None
     _check_policy(spec)
-    started = not ray.is_initialized()
-    if started:
-        if spec.address is not None:
-            ray.init(address=spec.address, log_to_driver=False)
-        else:
-            ray.init(num_cpus=max(1, spec.workers), include_dashboard=False, log_to_driver=False)
-    try:
+    with joined_ray(ray, spec.address, spec.workers):
         task = ray.remote(num_cpus=1, max_retries=0)(_run_chunk)
         pending = [task.remote(spec, chunk) for chunk in _chunks(indices, spec.workers)]
         while pending:
@@ -548,9 +542,6 @@ def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, A
                 yield from ray.get(done[0])
             except ray.exceptions.RayTaskError as err:
                 raise EvalError(f"Ray task failed: {err.cause if err.cause is not None else err}") from None
-    finally:
-        if started:
-            ray.shutdown()
 
 
 #: Where the episodes of an evaluation run: ``backend=NAME`` → ``results(spec, indices)``, the

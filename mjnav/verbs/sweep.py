@@ -37,7 +37,7 @@ from typing import Any
 
 from mjnav.args import ArgsError, Grammar, Parsed
 from mjnav.eval.intervals import mean_interval
-from mjnav.jobs import usable_cores
+from mjnav.jobs import joined_ray, usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = ["HEADLINE", "Cell", "SweepOptions", "cells", "grammar", "run", "run_cell", "table"]
@@ -254,21 +254,12 @@ def _ray(todo: Sequence[Cell], opts: SweepOptions) -> Iterator[dict[str, Any]]:
         import ray  # deferred: an optional extra (pip install mjnav[ray]), only for backend=ray
     except ImportError:
         raise ConfigError("backend=ray needs Ray: pip install 'mjnav[ray]'") from None
-    started = not ray.is_initialized()
-    if started:
-        if opts.address is not None:
-            ray.init(address=opts.address, log_to_driver=False)
-        else:
-            ray.init(num_cpus=max(opts.cpus_per_run, usable_cores()), include_dashboard=False, log_to_driver=False)
-    try:
+    with joined_ray(ray, opts.address, max(opts.cpus_per_run, usable_cores())):
         task = ray.remote(num_cpus=opts.cpus_per_run, max_retries=0)(run_cell)
         pending = [task.remote(cell) for cell in todo]
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
             yield ray.get(done[0])
-    finally:
-        if started:
-            ray.shutdown()
 
 
 BACKENDS.update(local=_local, ray=_ray)
