@@ -17,6 +17,7 @@ import yaml
 
 from mjnav.args import task_overrides
 from mjnav.control.action import ActionConfig
+from mjnav.control.crowd import ShieldConfig
 from mjnav.control.mpc import MpcConfig
 from mjnav.geometry.region import RegionConfig
 from mjnav.perception.tracker import TracksConfig
@@ -70,6 +71,7 @@ class TaskConfig:
     reward: RewardConfig = RewardConfig()
     observation: ObservationConfig = ObservationConfig()
     tracks: TracksConfig = TracksConfig()
+    shield: ShieldConfig = ShieldConfig()
 
     def _derived(self) -> dict[str, dict[str, tuple[str, Any]]]:
         """Copies the action layer keeps of other sections: ``{section: {field: (source key, value)}}``."""

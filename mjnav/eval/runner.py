@@ -329,6 +329,8 @@ class _Recorder:
                  planner_stats: dict[str, int]) -> tuple[EpisodeMetrics, dict[str, int]]:
         """Metrics of the episode's first ``samples`` control instants (``solves`` MPC solve times)."""
         stats = {k: int(v - self.planner_stats.get(k, 0)) for k, v in planner_stats.items()}
+        if self.task.config.shield.enabled:  # the action layer's crowd shield (mjnav.control.crowd)
+            stats["shield_overrides"] = counters["shield_overrides"] - self.counters["shield_overrides"]
         fallbacks = counters["fallbacks"] - self.counters["fallbacks"] + stats.get("fallbacks", 0)
         solve = self.solve[:solves] if self.agent.planner is None else self.agent.plan_times_ms()[: samples - 1]
         metrics = episode_metrics(

@@ -9,6 +9,7 @@ composer task (:mod:`mjnav.tasks.nav`) only moves numbers between this and
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 import time
@@ -16,13 +17,16 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from mjnav.control.action import boundary_distance, goal_inside, heading_angle, map_action_values, radii
+from mjnav.control.action import (ActionPoints, boundary_distance, goal_inside, heading_angle, map_action_values,
+                                  radii)
+from mjnav.control.crowd import shield_points
 from mjnav.control.dynamics import Limits, escape, track_velocity
 from mjnav.control.guarded import GuardedMpc
 from mjnav.geometry.raycast import beam_angles
 from mjnav.geometry.region import Region, RegionFinder, scan_polygon
 from mjnav.perception.tracker import Tracker
 from mjnav.planners.base import Planner, PlannerInput
+from mjnav.planners.tracks import relative_tracks
 from mjnav.tasks import observation as obs_lib
 from mjnav.tasks import reward as reward_lib
 from mjnav.tasks.design import get_design
@@ -132,7 +136,8 @@ class NavCore:
                                                config.region.num_points)
                          if config.observation.history == "aligned" else None)
         self._reward_terms = reward_lib.weighted_terms(config.reward)
-        self.counters = {"region_failures": 0, "region_recoveries": 0, "escapes": 0, "fallbacks": 0, "steps": 0}
+        self.counters = {"region_failures": 0, "region_recoveries": 0, "escapes": 0, "fallbacks": 0, "steps": 0,
+                         "shield_overrides": 0}
         self.timers = dict.fromkeys(("region", "action", "mpc", "reward", "observation"), 0.0)  # seconds
         self._tracker: Tracker | None = None  # the LiDAR tracker, built by use_tracks(True)
         self._tracks_on = False
@@ -256,6 +261,8 @@ class NavCore:
         t0 = time.perf_counter()
         squashed = [0.5 * (1.0 + t) for t in np.tanh(0.5 * action).tolist()]  # sigmoid(action), on floats
         points = map_action_values(squashed + motion, self.region, self.config.action)
+        if self.config.shield.enabled:
+            points = self._shield(points, position, velocity)
         state = np.array((_ORIGIN, velocity, accel), dtype=np.float64)
         t1 = time.perf_counter()
         result = self._mpc.solve(state, points.q_s, points.q_l_ref, self.region, points.goal_inside)
@@ -265,6 +272,22 @@ class NavCore:
         self.counters["fallbacks"] += int(not plan_ok)
         self._remember(points, result, position, plan_ok)
         return np.asarray(result.u0, dtype=np.float64)
+
+    def _shield(self, points: ActionPoints, position: np.ndarray, velocity: np.ndarray) -> ActionPoints:
+        """``shield.enabled``: the action's points, or the crowd shield's in their place (counted in
+        ``shield_overrides``) when the motion towards its ``Q_l`` would come too close to a track
+        (:func:`mjnav.control.crowd.shield_points`); ``Q_s`` then lies towards the new ``Q_l``."""
+        if points.goal_inside or self.tracks is None or not len(self.tracks):
+            return points
+        tracks = relative_tracks(self.tracks, position)
+        q_l = shield_points(self.region, self.goal - position, velocity, points.q_l_ref, tracks[:, [0, 1, 4]],
+                            tracks[:, 2:4], self._inflation, self.config.action.long_time, self.config.shield)
+        if q_l is None:
+            return points
+        self.counters["shield_overrides"] += 1
+        length = math.hypot(*q_l.tolist())
+        q_s = q_l * (min(points.r_s, length) / length) if length > 1e-9 else np.zeros(2)
+        return dataclasses.replace(points, q_s=q_s, q_l=q_l, q_l_ref=q_l)
 
     def _plan_velocity(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray,
                        accel: np.ndarray) -> np.ndarray:

@@ -101,9 +101,10 @@ class CrowdNavTask(composer.Task):
     @property
     def tracks_enabled(self) -> bool:
         """Whether the LiDAR tracker runs this episode: ``tracks.enabled``, a planner declaring
-        ``uses_tracks`` or an observation holding tracks (``observation.tracks`` > 0); decided at
-        each episode start."""
-        return self.config.tracks.enabled or self.config.observation.tracks > 0 or declared_tracks(self.planner)
+        ``uses_tracks``, an observation holding tracks (``observation.tracks`` > 0) or the action
+        layer's crowd shield (``shield.enabled``); decided at each episode start."""
+        return (self.config.tracks.enabled or self.config.observation.tracks > 0 or self.config.shield.enabled
+                or declared_tracks(self.planner))
 
     @property
     def tracks(self) -> np.ndarray | None:
