@@ -8,7 +8,8 @@
 #   <out>/logs/<crowd>_<slug>_<stage>_<rule>.log, <out>/logs/driver.log
 #
 # slugs as in `mjnav tables table=4 planners=mpc_goal,dwa,mpc_tracked`: ours, planner_mpc_goal, planner_dwa, teb,
-# planner_mpc_tracked (issue 39: planning around the LiDAR tracks; run it with METHODS=mpc_tracked).
+# planner_mpc_tracked (issue 39: planning around the LiDAR tracks; run it with METHODS=mpc_tracked), ours_tracks
+# ("Ours + tracks": Ours through the tracks' crowd shield, stageK_tracks_policy; METHODS=ours_tracks).
 # Order: cheapest first, both crowds per phase: (Ours, mpc_goal), then DWA, then TEB; per stage the
 # contact rule first, whose settled episodes the paper's rule (task.collision=scan) reuses.
 # One evaluation at a time, in this process's Python (mjnav from PYTHONPATH: run it from a pinned
@@ -72,6 +73,7 @@ WORKERS=${3:-1}
 for crowd in $CROWDS; do
     for stage in $STAGES; do
         wanted ours && pair "$crowd" ours "${stage}_policy" "$stage"
+        wanted ours_tracks && pair "$crowd" ours_tracks "${stage}_tracks_policy" "$stage"
         wanted mpc_goal && pair "$crowd" planner_mpc_goal mpc_goal "$stage"
     done
 done

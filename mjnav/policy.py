@@ -289,7 +289,9 @@ def training_overrides(spec: str | Path, runs_dir: str | Path = "runs") -> tuple
     Raises:
         ValueError: The config exists but is not a training config.
     """
-    entry = None if str(spec) in BASELINES else shipped.find(find_policy(spec, runs_dir))
+    # a shipped name first: several names may share one actor file with different recipes
+    # (stage6_tracks_policy is stage6_policy's actor with the crowd shield on)
+    entry = None if str(spec) in BASELINES else shipped.find(spec) or shipped.find(find_policy(spec, runs_dir))
     if entry is not None:  # a shipped policy: its recipe's overrides
         return shipped.load_recipe(entry.recipe).task_overrides
     config = policy_config(spec, runs_dir)

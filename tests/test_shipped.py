@@ -93,3 +93,14 @@ def test_the_package_never_reads_docs() -> None:
              for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
              if re.search(r"docs/|[\"']docs[\"']", line)]
     assert found == []
+
+
+def test_a_name_sharing_an_actor_file_keeps_its_own_recipe() -> None:
+    """stage6_tracks_policy ships stage6_policy's actor file: its name, not the file, picks the recipe,
+    so evaluating it turns the crowd shield on and evaluating Ours does not."""
+    from mjnav.policy import training_overrides
+
+    assert shipped.get("stage6_tracks_policy").file == shipped.get("stage6_policy").file
+    assert "shield.enabled=true" in training_overrides("stage6_tracks_policy")
+    assert "shield.enabled=true" not in training_overrides("stage6_policy")
+    assert training_overrides(str(shipped.get("stage6_policy").path())) == training_overrides("stage6_policy")

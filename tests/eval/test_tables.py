@@ -50,7 +50,8 @@ def test_existing_evaluations_are_read_not_rerun(tmp_path: Path, monkeypatch: py
     """Matching JSONL files are summarised under both rules with the paper's number beside them."""
     policy = tmp_path / "stage2_policy.pt"
     policy.write_bytes(b"x")
-    ours = dataclasses.replace(tables.TABLES[2].methods[-1], policy=str(tmp_path / "{stage}_policy.pt"))
+    ours = next(m for m in tables.TABLES[2].methods if m.name == "Ours")
+    ours = dataclasses.replace(ours, policy=str(tmp_path / "{stage}_policy.pt"))
     monkeypatch.setitem(tables.TABLES, 2, tables.Table(("stage2",), (ours,)))
     for rule, wins in (("scan", 3), ("contact", 4)):
         path = tmp_path / "out" / "ours" / f"stage2_{rule}.jsonl"

@@ -105,13 +105,13 @@ def test_widened_actor_acts_as_before() -> None:
 
 
 def test_recipe_starts_as_ours(tmp_path: Path) -> None:
-    """recipe=stage5_tracks_policy loads and starts from Ours' widened weights: with the actor frozen in
+    """recipe=stage5_tracks_observation loads and starts from Ours' widened weights: with the actor frozen in
     its first update (critic warm-up) the exported actor is Ours on the 399-value prefix."""
-    plan = session.plan_run(session.parse_args(["recipe=stage5_tracks_policy"]))
+    plan = session.plan_run(session.parse_args(["recipe=stage5_tracks_observation"]))
     assert plan.task.observation.tracks == 6 and plan.task.observation.frame == "goal"
     tiny = ["train.iterations=1", "train.num_envs=2", "train.steps_per_env=8", "train.minibatches=1",
             "train.epochs=1", "train.workers=0", f"out={tmp_path}"]
-    run_dir = session.run(["recipe=stage5_tracks_policy", *tiny])
+    run_dir = session.run(["recipe=stage5_tracks_observation", *tiny])
     trained, _ = load_actor(run_dir / "policy.pt")
     ours, _ = load_actor(shipped.get("stage5_policy").path())
     obs = torch.rand(8, 399)
