@@ -36,7 +36,7 @@ from mjnav.schema import (
     apply_overrides,
     merge,
 )
-from mjnav.tasks.design import DESIGNS
+from mjnav.tasks.design import DESIGNS, get_design
 from mjnav.world import PEDESTRIAN_MODELS
 
 __all__ = ["ConfigError", "TaskConfig", "TASK_SECTIONS", "load_task", "override_task", "task_dir"]
@@ -100,6 +100,9 @@ class TaskConfig:
             raise ValueError(f"region.inflation: {self.region.inflation} m is below robot.radius "
                              f"({self.robot.radius} m): the free region would not keep the robot's disc clear")
         self._check_registered()
+        if self.shield.enabled and (action := get_design(self.design).action) != "points":
+            raise ValueError(f"shield.enabled: the crowd shield checks the action's two reference points; design "
+                             f"{self.design!r} acts with {action!r} (use a design with action 'points', such as ours)")
         if self.lidar.beams < self.region.num_points:
             raise ValueError(f"lidar.beams: {self.lidar.beams} beams cannot give region.num_points "
                              f"({self.region.num_points}) boundary points")

@@ -4,6 +4,7 @@ tracks; with moving pedestrians it runs the tracker and replaces unsafe long-ter
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mjnav.config import load_task
 
@@ -29,6 +30,12 @@ def _rollout(stage: str, shield: bool, steps: int = 40, seed: int = 5):
 
 def test_the_shield_is_off_by_default():
     assert load_task("stage6").shield.enabled is False
+
+
+def test_a_design_without_reference_points_cannot_be_shielded():
+    """Designs 1-3 act with velocities or Q_l alone: a clear error, not a shield that never acts."""
+    with pytest.raises(ValueError, match="shield.enabled: .*design 'design1'"):
+        load_task("stage6", ["design=design1", "shield.enabled=true"])
 
 
 def test_without_tracks_the_shielded_layer_is_the_papers():
