@@ -294,7 +294,8 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
             static_hits, range_jump_per_metre]`` (metres except the counts ``min_points`` and
             ``static_hits``); ``limit`` is the range at and above which a beam hit nothing;
             pieces whose nearest point lies beyond ``detect_range`` are segmented but not reported.
-        grid: (G, G) int32 hit counts per world cell, updated in place (the robot's own static map).
+        grid: (G, G) uint8 hit counts per world cell, saturating at 255, updated in place (the robot's
+            own static map; one byte per cell keeps the cells a scan touches in few cache lines).
         out: (D, 3) buffer for ``[x, y, r]`` rows, world metres.
 
     Returns:
@@ -312,7 +313,7 @@ def detect_kernel(ranges: np.ndarray, cos_a: np.ndarray, sin_a: np.ndarray, ox: 
         px[k] = ox + ranges[b] * cos_a[b]
         py[k] = oy + ranges[b] * sin_a[b]
         i, j = _cell_of(px[k], py[k], x0, y0, inv, grid.shape[0], grid.shape[1])
-        if valid[k] and i >= 0 and grid[i, j] < 1_000_000:
+        if valid[k] and i >= 0 and grid[i, j] < 255:
             grid[i, j] += 1
     structure = np.zeros(n, np.bool_)
     stack = np.empty((2 * n + 4, 2), np.int64)

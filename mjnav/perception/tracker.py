@@ -49,7 +49,8 @@ class TrackerConfig:
         min_points: Fewest beams of one detection.
         map_cell: Cell size of the robot's own static-hit grid, m.
         map_size: Side of that grid, centred on the robot's first position of the episode, m.
-        static_hits: Scans hitting a cell before it counts as static structure.
+        static_hits: Scans hitting a cell before it counts as static structure (at most 255: the
+            grid counts in one byte).
         accel_std: Constant-velocity model's white-acceleration σ, m/s² (per √s).
         measurement_std: σ of a detected centre, m.
         initial_speed_std: σ of a new track's velocity, m/s.
@@ -109,6 +110,9 @@ class TrackerConfig:
                      "static_hits"):
             if getattr(self, name) < 1:
                 raise ValueError(f"tracker.{name}: {getattr(self, name)} must be >= 1")
+        if self.static_hits > 255:
+            raise ValueError(f"tracker.static_hits: {self.static_hits} must be <= 255 (the static map counts hits in "
+                             "one byte per cell)")
         if self.confirm_hits > self.confirm_window:
             raise ValueError(f"tracker.confirm_hits: {self.confirm_hits} exceeds confirm_window "
                              f"({self.confirm_window}): no track could be confirmed")
@@ -194,7 +198,7 @@ class Tracker:
         """Forget every track (a new episode); identities restart at 0."""
         self.arrays = TrackArrays(self.config.capacity)
         cells = int(np.ceil(self.config.map_size / self.config.map_cell))
-        self._grid = np.zeros((cells, cells), dtype=np.int32)
+        self._grid = np.zeros((cells, cells), dtype=np.uint8)  # counts saturate at 255 >= static_hits
         self._grid_placed = False
         self._next_id = 0
         self.num_detections = 0
