@@ -10,6 +10,8 @@
 # slugs as in `mjnav tables table=4 planners=mpc_goal,dwa,mpc_tracked`: ours, planner_mpc_goal, planner_dwa, teb,
 # planner_mpc_tracked (issue 39: planning around the LiDAR tracks; run it with METHODS=mpc_tracked), ours_tracks
 # ("Ours + tracks": Ours through the tracks' crowd shield, stageK_tracks_policy; METHODS=ours_tracks).
+# Also mpc_crowd (privileged), dwa+tracks and teb+tracks (planner.tracks=true; slugs planner_mpc_crowd,
+# planner_dwa_tracks, planner_teb_tracks): METHODS="mpc_crowd dwa+tracks teb+tracks".
 # Order: cheapest first, both crowds per phase: (Ours, mpc_goal), then DWA, then TEB; per stage the
 # contact rule first, whose settled episodes the paper's rule (task.collision=scan) reuses.
 # One evaluation at a time, in this process's Python (mjnav from PYTHONPATH: run it from a pinned
@@ -36,14 +38,15 @@ tables() {  # the tables from what is there (unfinished runs as "n of N"), one p
     for crowd in $CROWDS; do
         echo "### crowd.model=$crowd, crowd.reactive=$REACTIVE"
         echo
-        "$PY" -m mjnav tables table=4 out="$out/$crowd$SUFFIX" episodes="$episodes" run=false planners=mpc_goal,dwa,mpc_tracked \
+        "$PY" -m mjnav tables table=4 out="$out/$crowd$SUFFIX" episodes="$episodes" run=false planners=mpc_goal,dwa,mpc_tracked,mpc_crowd,dwa+tracks,teb+tracks \
             social=true
         echo
     done
 }
 
-one() {  # one evaluation: crowd, slug, policy, stage, rule
+one() {  # one evaluation: crowd, slug, policy, stage, rule, then extra `mjnav evaluate` arguments
     local crowd=$1 slug=$2 policy=$3 stage=$4 rule=$5
+    shift 5
     local dir="$OUT/$crowd$SUFFIX/$slug" log="$OUT/logs/${crowd}${SUFFIX}_${slug}_${stage}_${rule}.log"
     if [ -f "$dir/${stage}_${rule}.jsonl" ]; then return 0; fi
     mkdir -p "$dir/contact" "$OUT/logs"
@@ -51,7 +54,7 @@ one() {  # one evaluation: crowd, slug, policy, stage, rule
     if [ "$rule" = scan ]; then extra=(from_contact="$dir/contact"); fi
     echo "$(date -u +%FT%TZ) start $crowd$SUFFIX $slug $stage $rule" >> "$OUT/logs/driver.log"
     "$PY" -m mjnav evaluate task="$stage" policy="$policy" episodes="$EPISODES" workers="$WORKERS" out="$dir" \
-        task.collision="$rule" task.crowd.model="$crowd" task.crowd.reactive="$REACTIVE" "${extra[@]}" >> "$log" 2>&1
+        task.collision="$rule" task.crowd.model="$crowd" task.crowd.reactive="$REACTIVE" "${extra[@]}" "$@" >> "$log" 2>&1
     local rc=$?
     echo "$(date -u +%FT%TZ) end $crowd$SUFFIX $slug $stage $rule rc=$rc" >> "$OUT/logs/driver.log"
     [ $rc -eq 0 ] || return $rc
@@ -59,8 +62,10 @@ one() {  # one evaluation: crowd, slug, policy, stage, rule
     else mv "$dir/$stage.jsonl" "$dir/${stage}_scan.jsonl"; fi
 }
 
-pair() {  # both rules of one method and stage, the contact rule first
-    one "$@" contact && one "$@" scan
+pair() {  # both rules of one method and stage, the contact rule first: crowd, slug, policy, stage, extra arguments
+    local crowd=$1 slug=$2 policy=$3 stage=$4
+    shift 4
+    one "$crowd" "$slug" "$policy" "$stage" contact "$@" && one "$crowd" "$slug" "$policy" "$stage" scan "$@"
 }
 
 if [ "${1:-}" = tables ]; then
@@ -77,12 +82,15 @@ for crowd in $CROWDS; do
         wanted mpc_goal && pair "$crowd" planner_mpc_goal mpc_goal "$stage"
     done
 done
-for planner in dwa teb mpc_tracked; do
-    wanted $planner || continue
+for method in dwa teb mpc_tracked mpc_crowd dwa+tracks teb+tracks; do
+    wanted "$method" || continue
+    planner=${method%+tracks}
     slug=planner_$planner
-    [ $planner = teb ] && slug=teb
+    args=()
+    [ "$method" = teb ] && slug=teb
+    if [ "$method" != "$planner" ]; then slug=planner_${planner}_tracks; args=(planner.tracks=true); fi
     for crowd in $CROWDS; do
-        for stage in $STAGES; do pair "$crowd" $slug $planner "$stage"; done
+        for stage in $STAGES; do pair "$crowd" "$slug" "$planner" "$stage" "${args[@]}"; done
     done
 done
 echo "$(date -u +%FT%TZ) all done" >> "$OUT/logs/driver.log"
