@@ -158,8 +158,6 @@ def crowd_long_point(region: Region, goal: np.ndarray, velocity: np.ndarray, ped
     return best_long_point(*scored, goal)
 
 
-
-
 @dataclasses.dataclass(frozen=True)
 class ShieldConfig(MpcCrowdConfig):
     """The action layer's crowd shield (the task's ``shield`` section; not in the paper).
