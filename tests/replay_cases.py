@@ -3,6 +3,15 @@
 The digests in ``tests/data/replay_digests.json`` were recorded at commit b578b34, before the
 house reorganisation (issue 40); re-record only for an intended change of behaviour, and say so in
 the commit: ``python tests/replay_cases.py record``.
+
+The learned policies' float32 arithmetic (torch, MKL) takes other code paths on other CPUs (an
+AVX-512 machine gives other last bits than the one that recorded), and a closed-loop episode
+carries such a difference on. Those cases are also recorded per *numerics class*: the digest of
+the stage-2 policy's outputs on fixed probe inputs (:func:`numerics_fingerprint`), in
+``tests/data/replay_numerics.json``. A machine of a recorded class must reproduce its own digests
+bit for bit; one of an unknown class must reproduce the primary ones (or fails, naming its class).
+Record a new class only from a commit whose behaviour is unchanged (its other cases pass):
+``python tests/replay_cases.py record-numerics``.
 """
 
 from __future__ import annotations
@@ -15,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 DIGESTS = Path(__file__).parent / "data" / "replay_digests.json"
+NUMERICS = Path(__file__).parent / "data" / "replay_numerics.json"
 
 #: (case name, task, policy, held-out index, task overrides).
 CASES: list[tuple[str, str, str, int, tuple[str, ...]]] = [
@@ -79,6 +89,28 @@ def train_case(out: Path) -> dict:
     return {"digest": _digest(*arrays, outcome="train")}
 
 
+def numerics_fingerprint() -> str:
+    """The numerics class of this machine's torch: digest of the shipped stage-2 actor's outputs,
+    one probe row at a time as an episode runs it (16 hex digits)."""
+    import torch
+
+    from mjnav.shipped import resolve
+
+    actor = torch.jit.load(str(resolve("stage2_policy")), map_location="cpu")
+    size = next(p for p in actor.parameters() if p.dim() == 2).shape[1]
+    probes = torch.from_numpy(np.random.default_rng(0).normal(size=(8, size)).astype(np.float32))
+    with torch.no_grad():
+        out = [actor(probes[i : i + 1]).numpy() for i in range(len(probes))]
+    return hashlib.sha256(b"".join(o.tobytes() for o in out)).hexdigest()[:16]
+
+
+def expected(name: str) -> dict:
+    """The recorded result of case ``name`` for this machine's numerics class (primary otherwise)."""
+    primary = json.loads(DIGESTS.read_text())[name]
+    classes = json.loads(NUMERICS.read_text()) if NUMERICS.exists() else {}
+    return classes.get(numerics_fingerprint(), {}).get("cases", {}).get(name, primary)
+
+
 def _policy_spec(policy: str) -> str:
     """A shipped policy's name as evaluation takes it (one place to change when the API moves):
     the manifest name itself (``stage6_policy``, policies/manifest.yaml)."""
@@ -93,3 +125,20 @@ if __name__ == "__main__" and sys.argv[1:] == ["record"]:
         out["train-stage1"] = train_case(Path(tmp))
     DIGESTS.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
     print(json.dumps(out, indent=1))
+
+if __name__ == "__main__" and sys.argv[1:2] == ["record-numerics"]:
+    import platform
+    import subprocess
+    import tempfile
+
+    primary = json.loads(DIGESTS.read_text())
+    out = {name: run_case(task, policy, index, ov) for name, task, policy, index, ov in CASES}
+    with tempfile.TemporaryDirectory() as tmp:
+        out["train-stage1"] = train_case(Path(tmp))
+    differing = {name: result for name, result in out.items() if result != primary[name]}
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
+    classes = json.loads(NUMERICS.read_text()) if NUMERICS.exists() else {}
+    classes[numerics_fingerprint()] = {"recorded_at": commit, "machine": " ".join(sys.argv[2:]) or platform.processor(),
+                                       "cases": differing}
+    NUMERICS.write_text(json.dumps(classes, indent=1, sort_keys=True) + "\n")
+    print(json.dumps(differing, indent=1))

@@ -5,19 +5,17 @@ reorganisation (``tests/replay_cases.py``)."""
 
 from __future__ import annotations
 
-import json
-
 import pytest
 
-from tests.replay_cases import CASES, DIGESTS, run_case, train_case
-
-RECORDED = json.loads(DIGESTS.read_text())
+from tests.replay_cases import CASES, expected, numerics_fingerprint, run_case, train_case
 
 
 @pytest.mark.parametrize("name,task,policy,index,overrides", CASES, ids=[c[0] for c in CASES])
 def test_episode_replays_bit_for_bit(name, task, policy, index, overrides):
-    assert run_case(task, policy, index, overrides) == RECORDED[name]
+    result = run_case(task, policy, index, overrides)
+    assert result == expected(name), f"numerics class {numerics_fingerprint()} (tests/replay_cases.py)"
 
 
 def test_training_replays_bit_for_bit(tmp_path):
-    assert train_case(tmp_path) == RECORDED["train-stage1"]
+    result = train_case(tmp_path)
+    assert result == expected("train-stage1"), f"numerics class {numerics_fingerprint()} (tests/replay_cases.py)"
