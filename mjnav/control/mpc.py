@@ -31,7 +31,9 @@ The QP assembly kernels and the solver backends live in :mod:`mjnav.control.qp`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import threading
 import time
 from typing import Literal
 
@@ -41,6 +43,7 @@ import numpy as np
 from mjnav.control.dynamics import Limits, integrate, rollout, transition_matrices
 from mjnav.control.qp import (
     INF,
+    DaqpBackend,
     QpProblem,
     QpSolution,
     assemble,
@@ -207,24 +210,18 @@ class Mpc:
     """Receding-horizon MPC (see the module docstring); one instance per robot/environment."""
 
     def __init__(self, config: MpcConfig | None = None) -> None:
-        """Precompute the condensed matrices and build the QP backend once."""
+        """Take the condensed matrices (built once per process and config) and the QP backend."""
         self.config = cfg = config if config is not None else MpcConfig()
-        n_steps = cfg.horizon
-        self._phi, self._gamma = prediction_matrices(n_steps, cfg.t_c)
-        self._n = 2 * n_steps + (1 if cfg.soft else 0)
-        self._h_on, self._h_off = self._hessian(True), self._hessian(False)
-        self._weights = np.array([cfg.w_track, cfg.w_vel, cfg.w_acc, cfg.soft_weight, cfg.w_track * cfg.track_short])
+        shared = _shared(cfg)
+        self._phi, self._gamma, self._n = shared.phi, shared.gamma, shared.n
+        self._h_on, self._h_off, self._brake_h = shared.h_on, shared.h_off, shared.brake_h
+        self._weights, self._limits, self._a_fixed = shared.weights, shared.limits, shared.a_fixed
+        self._lb, self._ub = shared.lb, shared.ub
         #: The motion limits planned within (:attr:`MpcConfig.limits`).
-        self.limits = lim = cfg.limits
-        self._limits = lim.bounds()
-        self._a_fixed = self._fixed_rows()
-        self._free = np.empty((n_steps, 3, 2))  # scratch of the DAQP assembly
-        self._lb = np.full(self._n, -lim.j_max)
-        self._ub = np.full(self._n, lim.j_max)
-        if cfg.soft:
-            self._lb[-1], self._ub[-1] = 0.0, INF
-        self._backend = make_backend(cfg.solver, self._a_fixed, self._gamma[0], cfg.max_halfplanes, cfg.soft)
-        self._brake_h = self._brake_hessian()
+        self.limits = cfg.limits
+        # DAQP: the assembly scratch and the solver's buffers are the calling thread's (:func:`_scratch`)
+        self._backend = None if cfg.solver == "daqp" else make_backend(
+            cfg.solver, self._a_fixed, self._gamma[0], cfg.max_halfplanes, cfg.soft)
         #: Whether solves are warm-started (``config.warm_start``, resolved for the solver).
         self.warm_start = cfg.solver == "osqp" if cfg.warm_start is None else cfg.warm_start
         self.stats: dict[str, int] = {}
@@ -363,12 +360,13 @@ class Mpc:
         cfg = self.config
         nrm = _NO_ROWS if normals is None else normals
         off = _NO_OFFSETS if offsets is None else offsets
-        buffers = self._backend.reserve(cfg.horizon * nrm.shape[0])
+        free, backend = _scratch(cfg)
+        buffers = backend.reserve(cfg.horizon * nrm.shape[0])
         rows = fill_daqp(
             s, qs, ql, stop, self._phi, self._gamma, self._weights, self._limits, self._lb, self._ub, nrm, off,
-            cfg.drop_unreachable, cfg.t_c, self._free, *buffers,
+            cfg.drop_unreachable, cfg.t_c, free, *buffers,
         )  # fmt: skip
-        return self._backend.solve_rows(self._h_on if stop else self._h_off, rows, warm), rows
+        return backend.solve_rows(self._h_on if stop else self._h_off, rows, warm), rows
 
     def _fallback(self, s: Arr, qs: Arr, ql: Arr, normals: Arr | None, stop: bool) -> tuple[Arr, str]:
         if self._plan_age < self.config.horizon:
@@ -403,35 +401,6 @@ class Mpc:
         size = 16 * math.ceil(count / 16)
         self._backend = make_backend("osqp", self._a_fixed, self._gamma[0], size, cfg.soft)
         self.stats["osqp_rebuilds"] = self.stats.get("osqp_rebuilds", 0) + 1
-
-    def _hessian(self, stop: bool) -> np.ndarray:
-        cfg = self.config
-        gp, gv, ga = self._gamma
-        h1 = cfg.w_track * (cfg.track_short * np.outer(gp[0], gp[0]) + np.outer(gp[-1], gp[-1])) + cfg.w_jerk * np.eye(
-            cfg.horizon
-        )
-        if stop:
-            h1 += cfg.w_vel * np.outer(gv[-1], gv[-1]) + cfg.w_acc * ga.T @ ga
-        h = np.zeros((self._n, self._n))
-        h[: 2 * cfg.horizon, : 2 * cfg.horizon] = 2.0 * np.kron(np.eye(2), h1)
-        if cfg.soft:
-            h[-1, -1] = 2.0 * cfg.soft_weight
-        return h
-
-    def _fixed_rows(self) -> np.ndarray:
-        n_steps = self.config.horizon
-        _, gv, ga = self._gamma
-        rows = np.zeros((4 * n_steps, self._n))
-        for block, g in enumerate((gv, gv, ga, ga)):
-            axis = block % 2
-            rows[block * n_steps : (block + 1) * n_steps, axis * n_steps : (axis + 1) * n_steps] = g
-        return rows
-
-    def _brake_hessian(self) -> np.ndarray:
-        _, gv, ga = self._gamma
-        cfg = self.config
-        h1 = cfg.brake_velocity_weight * gv.T @ gv + ga.T @ ga + cfg.w_jerk * np.eye(cfg.horizon)
-        return 2.0 * np.kron(np.eye(2), h1)
 
     def _brake(self, s: np.ndarray) -> np.ndarray:
         """Jerks that bring velocity and acceleration to zero (|u| <= j_max only)."""
@@ -470,6 +439,95 @@ class Mpc:
             slack,
             rows,
         )
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Shared:
+    """What an :class:`Mpc` computes from its config alone; one per process and config (:func:`_shared`).
+
+    Every environment of a process (64 in a training worker) plans with the same matrices, so
+    they are built once and kept hot in the cache instead of once per environment. Never written.
+    """
+
+    phi: np.ndarray  # (N, 3, 3) prediction_matrices
+    gamma: np.ndarray  # (3, N, N)
+    n: int  # decision variables
+    h_on: np.ndarray  # (n, n) Hessian with the stop terms
+    h_off: np.ndarray  # (n, n) without them
+    brake_h: np.ndarray  # (2N, 2N) Hessian of the braking fallback
+    weights: np.ndarray  # (5,) as the QP kernels read them
+    limits: np.ndarray  # (3,) Limits.bounds()
+    a_fixed: np.ndarray  # (4N, n) velocity and acceleration rows
+    lb: np.ndarray  # (n,) variable bounds
+    ub: np.ndarray
+
+
+@functools.lru_cache(maxsize=64)
+def _shared(cfg: MpcConfig) -> _Shared:
+    """The :class:`_Shared` matrices of ``cfg`` (cached: a config is frozen and hashable)."""
+    phi, gamma = prediction_matrices(cfg.horizon, cfg.t_c)
+    n = 2 * cfg.horizon + (1 if cfg.soft else 0)
+    lb, ub = np.full(n, -float(cfg.j_max)), np.full(n, float(cfg.j_max))  # float: equal configs may hold ints
+    if cfg.soft:
+        lb[-1], ub[-1] = 0.0, INF
+    weights = np.array([cfg.w_track, cfg.w_vel, cfg.w_acc, cfg.soft_weight, cfg.w_track * cfg.track_short], dtype=float)
+    return _Shared(phi, gamma, n, _hessian(cfg, gamma, n, True), _hessian(cfg, gamma, n, False),
+                   _brake_hessian(cfg, gamma), weights, cfg.limits.bounds(), _fixed_rows(gamma, n), lb, ub)
+
+
+def _hessian(cfg: MpcConfig, gamma: np.ndarray, n: int, stop: bool) -> np.ndarray:
+    """(n, n) QP Hessian of the module docstring's cost (``stop``: with the |v_N|², Σ|a_k|² terms)."""
+    gp, gv, ga = gamma
+    h1 = cfg.w_track * (cfg.track_short * np.outer(gp[0], gp[0]) + np.outer(gp[-1], gp[-1])) + cfg.w_jerk * np.eye(
+        cfg.horizon
+    )
+    if stop:
+        h1 += cfg.w_vel * np.outer(gv[-1], gv[-1]) + cfg.w_acc * ga.T @ ga
+    h = np.zeros((n, n))
+    h[: 2 * cfg.horizon, : 2 * cfg.horizon] = 2.0 * np.kron(np.eye(2), h1)
+    if cfg.soft:
+        h[-1, -1] = 2.0 * cfg.soft_weight
+    return h
+
+
+def _fixed_rows(gamma: np.ndarray, n: int) -> np.ndarray:
+    """(4N, n) rows of v_k (x, y) and a_k (x, y) in the jerks, k = 1..N."""
+    n_steps = gamma.shape[1]
+    _, gv, ga = gamma
+    rows = np.zeros((4 * n_steps, n))
+    for block, g in enumerate((gv, gv, ga, ga)):
+        axis = block % 2
+        rows[block * n_steps : (block + 1) * n_steps, axis * n_steps : (axis + 1) * n_steps] = g
+    return rows
+
+
+def _brake_hessian(cfg: MpcConfig, gamma: np.ndarray) -> np.ndarray:
+    """(2N, 2N) Hessian of the braking fallback."""
+    _, gv, ga = gamma
+    h1 = cfg.brake_velocity_weight * gv.T @ gv + ga.T @ ga + cfg.w_jerk * np.eye(cfg.horizon)
+    return 2.0 * np.kron(np.eye(2), h1)
+
+
+_THREAD = threading.local()
+
+
+def _scratch(cfg: MpcConfig) -> tuple[np.ndarray, DaqpBackend]:
+    """The calling thread's DAQP assembly scratch ``(N, 3, 2)`` and backend buffers for ``cfg``.
+
+    Each solve fills them completely before DAQP reads them, so the instances of one thread can
+    take turns with one set; another thread gets its own. Looked up at every solve, so an
+    instance may move between threads.
+    """
+    table = getattr(_THREAD, "table", None)
+    if table is None:
+        table = _THREAD.table = {}
+    entry = table.get(cfg)
+    if entry is None:
+        if len(table) >= 64:  # many configs in one thread: start over (instances keep nothing of it)
+            table.clear()
+        shared = _shared(cfg)
+        entry = table[cfg] = (np.empty((cfg.horizon, 3, 2)), DaqpBackend(shared.a_fixed))
+    return entry
 
 
 def _validate(

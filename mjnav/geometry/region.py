@@ -214,8 +214,7 @@ class RegionFinder:
         self.config = config if config is not None else _DEFAULT
         _, th = _validate(np.zeros(np.size(angles)), angles, self.config.num_points)
         self.angles = th.copy()
-        cos, sin, ordered = _trig(self.angles)
-        self._trig = (cos.copy(), sin.copy(), ordered)
+        self._trig = _trig(self.angles)  # shared by every finder of this layout in the process (never written)
 
     def __call__(self, ranges: np.ndarray) -> Region:
         """The region of one scan of ``(n,)`` ranges, metres (see :func:`compute_region`).
@@ -292,7 +291,8 @@ _TRIG_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray, bool]] = {}
 def _trig(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """Cosines, sines and "strictly increasing over < 1 turn" flag of the beam angles.
 
-    Cached by value (the beam layout rarely changes). Ordered angles allow the O(n) hull.
+    Cached by value (the beam layout rarely changes), so the many finders of a process (one per
+    environment) read one set of tables; callers never write them. Ordered angles allow the O(n) hull.
     """
     key = angles.tobytes()
     hit = _TRIG_CACHE.get(key)

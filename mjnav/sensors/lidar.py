@@ -19,6 +19,7 @@ can be compared exactly.
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, Literal, Protocol
 
 import mujoco
@@ -61,9 +62,7 @@ class AnalyticLidar:
             config: Beam count and ``max_range`` (metres).
         """
         self.config = config
-        angles = beam_angles(config.beams)
-        self._cos = np.ascontiguousarray(np.cos(angles))
-        self._sin = np.ascontiguousarray(np.sin(angles))
+        self._cos, self._sin = _directions(config.beams)
         self._max_range = float(config.max_range)
 
     def scan(self, physics: mjcf.Physics | None, origin: np.ndarray, segments: np.ndarray | None = None,
@@ -86,6 +85,14 @@ class AnalyticLidar:
             self._max_range,
         )
 
+
+
+@functools.lru_cache(maxsize=8)
+def _directions(beams: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cosines and sines of ``beam_angles(beams)``, one pair per process for every analytic LiDAR
+    of that beam count (one per environment: the tables stay in the cache); never written."""
+    angles = beam_angles(beams)
+    return np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles))
 
 class MujocoLidar:
     """MuJoCo ray casting on the compiled scene (the robot's rangefinder semantics)."""

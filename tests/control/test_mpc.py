@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
-from mjnav.control.mpc import Mpc, MpcConfig, prediction_matrices, simulate_triple_integrator
+from mjnav.control.mpc import Mpc, MpcConfig, _scratch, _shared, prediction_matrices, simulate_triple_integrator
 from mjnav.control.qp import INF, fill_daqp
 from mjnav.geometry.polygon import halfplanes, orient_clockwise, points_in_convex
 from mjnav.geometry.region import compute_region
@@ -346,7 +348,7 @@ def test_daqp_fused_assembly_writes_the_generic_problem(soft, drop) -> None:
     also over stale rows from a larger earlier polygon."""
     rng = np.random.default_rng(11)
     mpc = Mpc(MpcConfig(soft=soft, drop_unreachable=drop))
-    backend, (m0, n) = mpc._backend, mpc._a_fixed.shape
+    (free, backend), (m0, n) = _scratch(mpc.config), mpc._a_fixed.shape
     cases = sorted((_random_case(rng) for _ in range(6)), key=lambda case: -len(case[3]))
     for state, q_s, q_l, poly in cases:  # falling polygon sizes: every fill lands on stale rows
         normals, offsets = halfplanes(poly)
@@ -354,7 +356,7 @@ def test_daqp_fused_assembly_writes_the_generic_problem(soft, drop) -> None:
             problem = mpc._problem(state, q_s, q_l, normals, offsets, stop)
             a, upper, lower, f = backend.reserve(CFG.horizon * len(poly))
             rows = fill_daqp(state, q_s, q_l, stop, mpc._phi, mpc._gamma, mpc._weights, mpc._limits,
-                             mpc._lb, mpc._ub, normals, offsets, drop, CFG.t_c, mpc._free, a, upper, lower, f)
+                             mpc._lb, mpc._ub, normals, offsets, drop, CFG.t_c, free, a, upper, lower, f)
             assert rows == len(problem.b_poly)
             np.testing.assert_array_equal(f, problem.f)
             np.testing.assert_array_equal(a[: m0 + rows], np.vstack([mpc._a_fixed, problem.a_poly]))
@@ -390,3 +392,29 @@ def test_track_short_false_ignores_the_short_term_point():
     assert a.ok and b.ok and np.allclose(a.jerks, b.jerks, atol=1e-8)
     c = Mpc().solve(state, np.array([0.2, -0.2]), np.array([2.0, 1.0]), SQUARE * 3)
     assert not np.allclose(a.jerks, c.jerks, atol=1e-6)
+
+
+def test_instances_of_one_config_share_matrices_and_the_thread_scratch() -> None:
+    """Equal configs take one set of matrices; instances taking turns on one thread's DAQP buffers
+    plan exactly as each does alone, and a solve on another thread uses that thread's buffers."""
+    first, second = Mpc(MpcConfig()), Mpc(MpcConfig())
+    assert first._h_on is second._h_on and first._a_fixed is _shared(MpcConfig()).a_fixed
+    assert Mpc(MpcConfig(horizon=12))._h_on.shape == (24, 24)  # another config: its own
+    rng = np.random.default_rng(5)
+    cases = [_random_case(rng) for _ in range(8)]
+    alone = [Mpc(MpcConfig()).solve(*case).jerks for case in cases]  # a fresh instance per case
+    turns = [(first if i % 2 else second).solve(*case).jerks for i, case in enumerate(cases)]
+    for a, b in zip(alone, turns, strict=True):
+        np.testing.assert_array_equal(a, b)
+    seen, results, made_here = [], [], [Mpc(MpcConfig()) for _ in cases]  # fresh: no plan history
+
+    def other_thread() -> None:
+        seen.append(_scratch(MpcConfig())[1])
+        results.extend(mpc.solve(*case).jerks for mpc, case in zip(made_here, cases, strict=True))
+
+    thread = threading.Thread(target=other_thread)
+    thread.start()
+    thread.join()
+    assert seen[0] is not _scratch(MpcConfig())[1]
+    for a, b in zip(alone, results, strict=True):
+        np.testing.assert_array_equal(a, b)
