@@ -126,6 +126,7 @@ if __name__ == "__main__" and sys.argv[1:] == ["record"]:
     DIGESTS.write_text(json.dumps(out, indent=1, sort_keys=True) + "\n")
     print(json.dumps(out, indent=1))
 
+
 if __name__ == "__main__" and sys.argv[1:2] == ["record-numerics"]:
     import platform
     import subprocess

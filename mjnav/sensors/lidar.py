@@ -86,13 +86,13 @@ class AnalyticLidar:
         )
 
 
-
 @functools.lru_cache(maxsize=8)
 def _directions(beams: int) -> tuple[np.ndarray, np.ndarray]:
     """Cosines and sines of ``beam_angles(beams)``, one pair per process for every analytic LiDAR
     of that beam count (one per environment: the tables stay in the cache); never written."""
     angles = beam_angles(beams)
     return np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles))
+
 
 class MujocoLidar:
     """MuJoCo ray casting on the compiled scene (the robot's rangefinder semantics)."""
