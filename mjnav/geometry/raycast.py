@@ -21,6 +21,7 @@ from numba import njit
 __all__ = [
     "add_noise",
     "beam_angles",
+    "beam_trig",
     "cast_rays",
     "cast_rays_kernel",
     "cast_uniform_rays_kernel",
@@ -40,6 +41,27 @@ def beam_angles(beams: int) -> np.ndarray:
     """
     return np.arange(beams, dtype=np.float64) * (2.0 * np.pi / beams)
 
+
+
+_TRIG_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray, bool]] = {}
+
+
+def beam_trig(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Cosines, sines and "strictly increasing over < 1 turn" flag of the beam angles (radians).
+
+    Cached by value (the beam layout rarely changes), so every region finder and analytic LiDAR of
+    a process (one of each per environment) reads one set of tables; callers never write them.
+    Ordered angles allow the region's O(n) hull.
+    """
+    key = angles.tobytes()
+    hit = _TRIG_CACHE.get(key)
+    if hit is None:
+        if len(_TRIG_CACHE) >= 8:
+            _TRIG_CACHE.clear()
+        ordered = bool(np.all(np.diff(angles) > 0.0) and angles[-1] - angles[0] < 2.0 * math.pi)
+        hit = (np.cos(angles), np.sin(angles), ordered)
+        _TRIG_CACHE[key] = hit
+    return hit
 
 def wall_segments(size: tuple[float, float] | Sequence[float]) -> np.ndarray:
     """Inner faces of the arena walls around an interior centred on the origin.

@@ -54,6 +54,7 @@ import numpy as np
 from numba import njit
 
 from mjnav.geometry.polygon import graham_scan, monotone_chain
+from mjnav.geometry.raycast import beam_trig
 from mjnav.schema import check as _check
 
 __all__ = ["STATUS_NAMES", "Region", "RegionConfig", "RegionFinder", "compute_region", "scan_polygon", "warm_up"]
@@ -195,7 +196,7 @@ def compute_region(ranges: np.ndarray, angles: np.ndarray, config: RegionConfig 
     """
     cfg = config if config is not None else _DEFAULT
     r, th = _validate(ranges, angles, cfg.num_points)
-    return _region(r, th, *_trig(th), cfg)
+    return _region(r, th, *beam_trig(th), cfg)
 
 
 class RegionFinder:
@@ -214,7 +215,7 @@ class RegionFinder:
         self.config = config if config is not None else _DEFAULT
         _, th = _validate(np.zeros(np.size(angles)), angles, self.config.num_points)
         self.angles = th.copy()
-        self._trig = _trig(self.angles)  # shared by every finder of this layout in the process (never written)
+        self._trig = beam_trig(self.angles)  # shared by every finder of this layout in the process (never written)
 
     def __call__(self, ranges: np.ndarray) -> Region:
         """The region of one scan of ``(n,)`` ranges, metres (see :func:`compute_region`).
@@ -285,24 +286,6 @@ def warm_up() -> None:
 
 
 _DEFAULT = RegionConfig()
-_TRIG_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray, bool]] = {}
-
-
-def _trig(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Cosines, sines and "strictly increasing over < 1 turn" flag of the beam angles.
-
-    Cached by value (the beam layout rarely changes), so the many finders of a process (one per
-    environment) read one set of tables; callers never write them. Ordered angles allow the O(n) hull.
-    """
-    key = angles.tobytes()
-    hit = _TRIG_CACHE.get(key)
-    if hit is None:
-        if len(_TRIG_CACHE) >= 8:
-            _TRIG_CACHE.clear()
-        ordered = bool(np.all(np.diff(angles) > 0.0) and angles[-1] - angles[0] < 2.0 * math.pi)
-        hit = (np.cos(angles), np.sin(angles), ordered)
-        _TRIG_CACHE[key] = hit
-    return hit
 
 
 def _validate(ranges: np.ndarray, angles: np.ndarray, num_points: int) -> tuple[np.ndarray, np.ndarray]:

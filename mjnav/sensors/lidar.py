@@ -19,14 +19,13 @@ can be compared exactly.
 
 from __future__ import annotations
 
-import functools
 from typing import TYPE_CHECKING, Literal, Protocol
 
 import mujoco
 import numpy as np
 from dm_control import mjcf
 
-from mjnav.geometry.raycast import beam_angles, cast_uniform_rays_kernel
+from mjnav.geometry.raycast import beam_angles, beam_trig, cast_uniform_rays_kernel
 from mjnav.schema import LidarConfig
 
 if TYPE_CHECKING:
@@ -62,7 +61,7 @@ class AnalyticLidar:
             config: Beam count and ``max_range`` (metres).
         """
         self.config = config
-        self._cos, self._sin = _directions(config.beams)
+        self._cos, self._sin, _ = beam_trig(beam_angles(config.beams))  # shared by the process's LiDARs
         self._max_range = float(config.max_range)
 
     def scan(self, physics: mjcf.Physics | None, origin: np.ndarray, segments: np.ndarray | None = None,
@@ -84,14 +83,6 @@ class AnalyticLidar:
             _NO_SEGMENTS if segments is None else segments, _NO_CIRCLES if circles is None else circles,
             self._max_range,
         )
-
-
-@functools.lru_cache(maxsize=8)
-def _directions(beams: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cosines and sines of ``beam_angles(beams)``, one pair per process for every analytic LiDAR
-    of that beam count (one per environment: the tables stay in the cache); never written."""
-    angles = beam_angles(beams)
-    return np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles))
 
 
 class MujocoLidar:
