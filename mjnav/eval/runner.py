@@ -620,7 +620,9 @@ def summarise(rows: Sequence[dict[str, Any]], common: dict[str, Any], seed_offse
 
 
 def _common(spec: EvalSpec) -> dict[str, Any]:
-    """The fields every JSONL record of evaluation ``spec`` shares (``_COMMON_KEYS``)."""
+    """The fields every JSONL record of evaluation ``spec`` shares (``_COMMON_KEYS``), then the
+    evaluation's episode count (``planned_episodes``: a merge of shards checks they are all there)
+    and the shard (``shard``, last)."""
     # deferred: mjnav.envs ~0.5 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav evaluate --help`
     from mjnav.envs.factory import resolve_config
     # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
@@ -633,7 +635,8 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
             "commit": git_commit(), "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
             "design": config.design, "action_mode": spec.action, "planner_overrides": list(spec.planner),
-            **planner_record(spec.policy, spec.planner), **_shard_field(spec.shard)}
+            **planner_record(spec.policy, spec.planner), "planned_episodes": spec.episodes,
+            **_shard_field(spec.shard)}
 
 
 def _shard_field(shard: tuple[int, int]) -> dict[str, str]:
@@ -901,7 +904,7 @@ class EvaluateOptions:
         tasks: Comma-separated stages, one evaluation each (instead of ``task``).
         episodes: Held-out scenarios per task.
         workers: Worker processes (0: this process; default: one per CPU core this process may use).
-        out: Output folder (default ``evals/<policy>``).
+        out: Output folder (default ``evals/<policy>``; with ``merge=``, the first source's folder).
         seed_offset: Scenario i uses the episode seed 2**32 + seed_offset + i (never a training seed).
         action: ``mean`` (the policy's mean action), ``expected`` or ``sample`` (its Gaussian; checkpoints only).
         from_contact: Folder of a contact-rule evaluation of the same policy, seeds and commit whose
@@ -914,7 +917,8 @@ class EvaluateOptions:
             with ``workers`` CPUs.
         merge: Comma-separated shard folders or JSONL files to merge into ``out`` (one JSONL per task and
             the summary of the whole evaluation) instead of evaluating; refuses overlapping or
-            disagreeing shards.
+            disagreeing shards and missing episodes (all of the count the shards were run with, or
+            of ``episodes=`` when given with ``merge=``).
     """
 
     policy: str | None = None

@@ -9,12 +9,15 @@ What is read: a JSONL file as named; a folder's ``<task>.shard-i-of-n.jsonl`` fi
 without shard files there, its ``<task>.jsonl`` (so merging into the shards' own folder twice reads
 the shards again, not the merged file).
 
-What is refused (:class:`mjnav.eval.runner.EvalError`, naming the files and the difference): an
-episode in two files (overlapping shards), records that disagree on a field every record of one
-evaluation shares (task and its version, policy and its hash, planner, overrides, code commit,
-action mode, seed offset, shard count), and missing episodes (the indices must be 0 .. N − 1). A
-merged ``<task>.jsonl`` already in ``out`` is replaced only when every record it holds is one of the
-merged records; otherwise it is left as it is.
+What is refused (:class:`mjnav.eval.runner.EvalError`, naming the files and the difference): a file
+named twice, an episode in two files (overlapping shards), records that disagree on a field every
+record of one evaluation shares (task and its version, policy and its hash, planner, overrides,
+code commit, action mode, seed offset, shard count), and missing episodes, named by shard: the
+indices must be 0 .. N − 1, where N is ``episodes`` when given, else the largest episode count the
+shards were run with (their records' ``planned_episodes``; the largest index + 1 for records made
+before that field). Records past N − 1 are left out of the merge (and counted). A merged
+``<task>.jsonl`` already in ``out`` is replaced only when every record it holds is one of the merged
+records; otherwise it is left as it is.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from mjnav.eval.runner import (
     write_summaries,
 )
 
-__all__ = ["SHARD_FILE", "merge", "shard_files"]
+__all__ = ["SHARD_FILE", "merge", "planned", "shard_files"]
 
 #: Name of a shard's JSONL file: ``<task>.shard-<i>-of-<n>.jsonl``.
 SHARD_FILE = re.compile(r"^(?P<task>.+)\.shard-(?P<i>\d+)-of-(?P<n>\d+)\.jsonl$")
@@ -64,7 +67,12 @@ def shard_files(sources: Sequence[str | Path]) -> list[Path]:
             files += picked
         else:
             raise EvalError(f"merge: no such file or folder {str(source)!r}")
-    return list(dict.fromkeys(p.resolve() for p in files))
+    seen: dict[Path, Path] = {}
+    for path in files:
+        if path.resolve() in seen:
+            raise EvalError(f"merge: {path} is named twice (also as {seen[path.resolve()]}): name each shard once")
+        seen[path.resolve()] = path
+    return list(seen)
 
 
 def _shared(record: dict[str, Any]) -> dict[str, Any]:
@@ -88,10 +96,10 @@ def _by_task(files: Sequence[Path]) -> dict[str, dict[int, tuple[Path, dict[str,
                 raise EvalError(f"merge: {path} holds a line that is not an evaluation record")
             shared = _shared(record)
             first_path, first = reference.setdefault(task, (path, shared))
-            differ = [f"{k}: {first[k]!r} in {first_path}, {shared[k]!r} in {path}"
-                      for k in _SHARED if shared[k] != first[k]]
+            differ = [f"{k}: {first[k]!r} there, {shared[k]!r} here" for k in _SHARED if shared[k] != first[k]]
             if differ:
-                raise EvalError(f"merge: the files are not shards of one evaluation of {task} ({'; '.join(differ)})")
+                raise EvalError(f"merge: {path} and {first_path} are not shards of one evaluation of {task} "
+                                f"({'; '.join(differ)})")
             episodes = tasks.setdefault(task, {})
             if index in episodes:
                 raise EvalError(f"merge: episode {index} of {task} is in {episodes[index][0]} and in {path} "
@@ -100,14 +108,29 @@ def _by_task(files: Sequence[Path]) -> dict[str, dict[int, tuple[Path, dict[str,
     return tasks
 
 
-def _merged(task: str, episodes: dict[int, tuple[Path, dict[str, Any]]]) -> list[dict[str, Any]]:
-    """The records of one task by index, without their ``shard`` field; every index 0 .. N − 1 present."""
-    missing = sorted(set(range(max(episodes) + 1)) - set(episodes))
+def planned(episodes: dict[int, tuple[Path, dict[str, Any]]]) -> int:
+    """The episode count of the evaluation the records come from: their largest ``planned_episodes``
+    (the largest index + 1 for records made before that field)."""
+    counts = [r.get("planned_episodes") for _, r in episodes.values()]
+    return max([c for c in counts if isinstance(c, int)] + [max(episodes) + 1])
+
+
+def _merged(task: str, episodes: dict[int, tuple[Path, dict[str, Any]]], wanted: int) -> list[dict[str, Any]]:
+    """Episodes 0 .. ``wanted`` − 1 of one task by index, without their ``shard`` field.
+
+    Raises:
+        EvalError: Some are missing; the message counts them per shard.
+    """
+    missing = sorted(set(range(wanted)) - set(episodes))
     if missing:
+        count = _shared(next(iter(episodes.values()))[1])["shard_count"]
+        shards = [f"shard {k}/{count} has {sum(i in episodes for i in range(k, wanted, count))} of "
+                  f"{len(range(k, wanted, count))}" for k in range(count)] if count > 1 else []
         listed = ", ".join(map(str, missing[:_LISTED])) + (", ..." if len(missing) > _LISTED else "")
-        raise EvalError(f"merge: {task} lacks {len(missing)} of episodes 0..{max(episodes)} ({listed}): "
-                        f"a shard is missing or unfinished")
-    return [{k: v for k, v in episodes[i][1].items() if k != "shard"} for i in sorted(episodes)]
+        raise EvalError(f"merge: {task} lacks {len(missing)} of its {wanted} episodes ({listed})"
+                        f"{': ' if shards else ''}{', '.join(shards)}; a shard is missing or unfinished "
+                        f"(episodes=N merges the first N)")
+    return [{k: v for k, v in episodes[i][1].items() if k != "shard"} for i in range(wanted)]
 
 
 def _write_jsonl(path: Path, records: list[dict[str, Any]]) -> None:
@@ -122,29 +145,36 @@ def _write_jsonl(path: Path, records: list[dict[str, Any]]) -> None:
     _atomic_write(path, text)
 
 
-def merge(sources: Sequence[str | Path], out_dir: str | Path) -> list[dict[str, Any]]:
+def merge(sources: Sequence[str | Path], out_dir: str | Path, episodes: int | None = None) -> list[dict[str, Any]]:
     """Merge shard files into ``<out_dir>/<task>.jsonl`` and ``summary.csv``/``summary.md``.
 
     Args:
         sources: Shard folders and JSONL files (:func:`shard_files`).
         out_dir: Folder of the merged files (may be a shards' folder).
+        episodes: Episodes per task of the merged evaluation (the first ones); None: the count the
+            shards were run with (:func:`planned`).
 
     Returns:
         One summary row per task (:func:`mjnav.eval.runner.summarise`), as an unsharded
-        evaluation of the same episodes returns.
+        evaluation of the same episodes returns; each row's ``left_out`` counts the records past
+        the merged episodes.
 
     Raises:
-        EvalError: Overlapping or disagreeing shards, missing episodes, a missing source, or a
-            merged file in ``out_dir`` that holds other records (nothing is written then).
+        EvalError: A file named twice, overlapping or disagreeing shards, missing episodes, a missing
+            source, ``episodes`` < 1, or a merged file in ``out_dir`` that holds other records
+            (nothing is written then).
     """
+    if episodes is not None and episodes < 1:
+        raise EvalError(f"merge: episodes must be >= 1, got {episodes}")
     tasks = _by_task(shard_files(sources))
     if not tasks:
         raise EvalError("merge: the files hold no episodes")
-    merged = {task: _merged(task, episodes) for task, episodes in tasks.items()}
+    wanted = {task: episodes or planned(found) for task, found in tasks.items()}
+    merged = {task: _merged(task, found, wanted[task]) for task, found in tasks.items()}
     out, rows = Path(out_dir), []
     for task, records in merged.items():
         _write_jsonl(out / f"{task}.jsonl", records)
         offset = _shared(records[0])["seed_offset"]
         rows.append(summarise(records, records[0], offset))
     write_summaries(rows, out)
-    return rows
+    return [{**row, "left_out": len(tasks[task]) - len(merged[task])} for row, task in zip(rows, merged, strict=True)]

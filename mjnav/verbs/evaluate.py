@@ -16,7 +16,7 @@ from mjnav.eval.shards import merge as merge_shards
 __all__ = ["grammar", "run"]
 
 #: The keys ``merge=`` may be given with.
-MERGE_KEYS = frozenset({"merge", "out"})
+MERGE_KEYS = frozenset({"merge", "out", "episodes"})
 
 
 def grammar() -> Grammar:
@@ -33,20 +33,25 @@ def run(parsed: Parsed, argv: list[str]) -> int:
 
 
 def merge(parsed: Parsed) -> int:
-    """``merge=A,B,... [out=DIR]``: merge shard files into ``out`` (default: the first source's folder)."""
+    """``merge=A,B,... [out=DIR] [episodes=N]``: merge shard files into ``out`` (default: the first
+    source's folder), episodes 0 .. N − 1 of each task (default: the count the shards were run with)."""
     extra = sorted(set(parsed.given) - MERGE_KEYS) + [f"{p}.*" for p in ("task", "planner") if getattr(parsed, p)]
     sources = [s.strip() for s in parsed.options.merge.split(",") if s.strip()]
     try:
         if extra:
-            raise EvalError(f"merge: takes only merge= and out=, got {', '.join(extra)}")
+            raise EvalError(f"merge: takes only merge=, out= and episodes=, got {', '.join(extra)}")
         if not sources:
             raise EvalError("merge: expected comma-separated shard folders or JSONL files")
         first = Path(sources[0])
         out = Path(parsed.options.out) if parsed.options.out else (first if first.is_dir() else first.parent)
-        rows = merge_shards(sources, out)
+        rows = merge_shards(sources, out, parsed.options.episodes if "episodes" in parsed.given else None)
     except EvalError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     print(format_markdown(rows), end="")
+    for row in rows:
+        if row["left_out"]:
+            print(f"{row['task']}: {row['left_out']} records past episode {int(row['episodes']) - 1} are left out "
+                  f"(the shard files keep them)")
     print(f"wrote {out}/summary.csv, {out}/summary.md and one merged JSONL per task")
     return 0

@@ -93,10 +93,14 @@ def test_overlapping_missing_and_foreign_are_refused(runs, tmp_path) -> None:
     zero = _shard_copy(runs, tmp_path, 0)
     with pytest.raises(EvalError, match="episode 0 of stage5 is in .*s0.* and in .*shards.*overlapping"):
         merge([zero, runs["shards"]], tmp_path / "m")
-    with pytest.raises(EvalError, match="shard_count: 2 in .*, 1 in .*whole"):
+    not_shards = "whole.* and .*s0.* are not shards of one evaluation .*shard_count: 2 there, 1 here"
+    with pytest.raises(EvalError, match=not_shards):
         merge([zero, runs["whole"]], tmp_path / "m")
-    with pytest.raises(EvalError, match=r"lacks 2 of episodes 0\.\.4 \(1, 3\)"):
+    with pytest.raises(EvalError, match=r"lacks 2 of its 5 episodes \(1, 3\): shard 0/2 has 3 of 3, "
+                                        r"shard 1/2 has 0 of 2"):
         merge([zero], tmp_path / "m")
+    with pytest.raises(EvalError, match="named twice"):
+        merge([zero, zero / "stage5.shard-0-of-2.jsonl"], tmp_path / "m")
     with pytest.raises(EvalError, match="seed_offset"):
         merge([zero, _shard_copy(runs, tmp_path, 1, lambda r: {**r, "seed": r["seed"] + 7})], tmp_path / "m")
     other = tmp_path / "other"
@@ -106,6 +110,24 @@ def test_overlapping_missing_and_foreign_are_refused(runs, tmp_path) -> None:
     with pytest.raises(EvalError, match="not among the merged ones"):
         merge([runs["shards"]], other)
     assert (other / "stage5.jsonl").read_text() == before
+
+
+def test_unfinished_shards_are_refused_and_episodes_merges_the_first(runs, tmp_path, capsys) -> None:
+    """Shards cut short (a killed job) cannot pass for a smaller evaluation: the records carry the
+    evaluation's episode count; ``episodes=N`` merges the first N, saying what it leaves out."""
+    cut = [_shard_copy(runs, tmp_path, k) for k in range(2)]
+    for k, folder in enumerate(cut):
+        path = folder / f"stage5.shard-{k}-of-2.jsonl"
+        path.write_text("".join(line + "\n" for line in path.read_text().splitlines()[:1]))  # episodes 0 and 1
+    assert {r["planned_episodes"] for r in read_jsonl(runs["whole"] / "stage5.jsonl")} == {EPISODES}
+    with pytest.raises(EvalError, match=r"lacks 3 of its 5 episodes \(2, 3, 4\): shard 0/2 has 1 of 3, "
+                                        r"shard 1/2 has 1 of 2"):
+        merge(cut, tmp_path / "m")
+    assert main(["evaluate", f"merge={runs['shards']}", "episodes=2", f"out={tmp_path / 'first'}"]) == 0
+    assert "stage5: 3 records past episode 1 are left out" in capsys.readouterr().out
+    assert records(tmp_path / "first" / "stage5.jsonl") == records(runs["whole"] / "stage5.jsonl")[:2]
+    assert main(["evaluate", f"merge={cut[0]},{cut[1]}", "episodes=2", f"out={tmp_path / 'cut'}"]) == 0
+    assert summary(tmp_path / "cut" / "summary.csv") == summary(tmp_path / "first" / "summary.csv")
 
 
 def test_a_shard_file_resumes_and_refuses_another_shard(runs, tmp_path) -> None:
@@ -128,6 +150,8 @@ def test_shard_and_backend_arguments() -> None:
         parse_args(["policy=mpc_goal", "address=auto"])
 
 
-def test_merge_takes_only_merge_and_out(runs, capsys) -> None:
-    assert main(["evaluate", f"merge={runs['shards']}", "episodes=3"]) == 2
-    assert "takes only merge= and out=, got episodes" in capsys.readouterr().err
+def test_merge_takes_only_merge_out_and_episodes(runs, capsys) -> None:
+    assert main(["evaluate", f"merge={runs['shards']}", "workers=3"]) == 2
+    assert "takes only merge=, out= and episodes=, got workers" in capsys.readouterr().err
+    assert main(["evaluate", f"merge={runs['shards']}", "episodes=0"]) == 2
+    assert "episodes must be >= 1" in capsys.readouterr().err
