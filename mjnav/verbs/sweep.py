@@ -214,11 +214,15 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     """Train and evaluate one cell (skipped when its ``result.json`` exists); returns its result.
 
     The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``run`` (run folder),
-    ``summary`` (the evaluation's summary row), or ``failed`` (which step) and ``log``.
+    ``summary`` (the evaluation's summary row), or ``failed`` (which step) and ``log``; ``skipped``
+    (True) when it was read from an earlier ``result.json``. NaN is written to ``result.json`` as null.
     """
     done = cell.folder / "result.json"
     if done.is_file():
-        return json.loads(done.read_text(encoding="utf-8"))
+        result = json.loads(done.read_text(encoding="utf-8"))
+        if "summary" in result:  # null back to NaN, as _summary reads an empty cell
+            result["summary"] = {k: math.nan if v is None else v for k, v in result["summary"].items()}
+        return {**result, "skipped": True}
     cell.folder.mkdir(parents=True, exist_ok=True)
     (cell.folder / "failed.json").unlink(missing_ok=True)
     head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed}
@@ -232,7 +236,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
         return _failed(cell, head, "evaluate", log)
     result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
-    done.write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    done.write_text(json.dumps(_no_nan(result), indent=1) + "\n", encoding="utf-8")
     return result
 
 
@@ -331,7 +335,8 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         out = todo[0].folder.parent
         results = []
         for result in BACKENDS[opts.backend](todo, opts):
-            state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else "done"
+            state = "done before (its result.json)" if result.pop("skipped", False) else "done"
+            state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else state
             print(f"sweep: {result['cell']}: {state}", file=sys.stderr, flush=True)
             results.append(result)
     except ConfigError as err:

@@ -102,10 +102,14 @@ def test_table_means_and_intervals_over_seeds_and_restart_skips_done(tmp_path, m
     assert "| train.entropy | seeds | Success (%) |" in table
     assert f"| 0.005 | 1,2,3 | 20.0 [{100 * max(0.2 - half, 0.0):.1f}, {100 * (0.2 + half):.1f}] |" in table
     assert table in capsys.readouterr().out
-    # started again: every cell is done, nothing runs, the same table
+    cell = (tmp_path / "entropy-0.005_seed-1" / "result.json").read_text()
+    assert "NaN" not in cell and json.loads(cell)["summary"]["time_s"] is None  # strict JSON
+    # started again: every cell is done, nothing runs, the same table, said so
     calls.clear()
     assert main(argv) == 0 and calls == []
     assert (tmp_path / "sweep.md").read_text() == table
+    assert "entropy-0.005_seed-1: done before (its result.json)" in capsys.readouterr().err
+    assert "skipped" not in (tmp_path / "sweep.json").read_text()
 
 
 def test_a_failed_cell_is_recorded_and_the_others_go_on(tmp_path, monkeypatch, capsys) -> None:
