@@ -63,7 +63,8 @@ def _verb(name: str, summary: str, module: str) -> Verb:
 
 
 VERBS: dict[str, Verb] = {
-    "train": _verb("train", "Train a policy with PPO (rsl-rl); a run folder per run.", "mjnav.verbs.train"),
+    "train": _verb("train", "Train a policy with PPO (rsl-rl); a run folder per run; data-parallel under "
+                   "`torchrun --nproc_per_node=N -m mjnav train`.", "mjnav.verbs.train"),
     "evaluate": _verb("evaluate", "Evaluate a policy on held-out scenarios; JSONL, CSV and a table.",
                       "mjnav.verbs.evaluate"),
     "render": _verb("render", "Render one episode off-screen to MP4 with the action layer drawn in.",

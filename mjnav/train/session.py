@@ -339,14 +339,20 @@ def check_device(device: str) -> None:
 
 
 def _write_config(plan: RunPlan, argv: Sequence[str]) -> None:
-    """Write ``config.yaml``; a resume keeps the run's first ``init`` and ``argv`` and lists its own."""
+    """Write ``config.yaml``; a resume keeps the run's first ``init`` and ``argv`` and lists its own.
+
+    ``run.ranks`` holds the number of processes (``torchrun`` ranks) of each launch, the first and
+    then each resume (None for a launch recorded before this field).
+    """
     plan.run_dir.mkdir(parents=True, exist_ok=True)
     path = plan.run_dir / "config.yaml"
-    first = {"init": str(plan.init) if plan.init else None, "argv": list(argv), "resumes": []}
+    ranks = distributed.current().world_size
+    first = {"init": str(plan.init) if plan.init else None, "argv": list(argv), "resumes": [], "ranks": [ranks]}
     if plan.checkpoint is not None and path.is_file():
         saved = yaml.safe_load(path.read_text())["run"]
-        first = {"init": saved.get("init"), "argv": saved.get("argv", []),
-                 "resumes": [*saved.get("resumes", []), list(argv)]}
+        resumes = saved.get("resumes", [])
+        first = {"init": saved.get("init"), "argv": saved.get("argv", []), "resumes": [*resumes, list(argv)],
+                 "ranks": [*saved.get("ranks", [None] * (1 + len(resumes))), ranks]}
     record = {
         "run": {
             "task": plan.task.name,
@@ -453,7 +459,7 @@ def _start_line(plan: RunPlan) -> str:
         return (f"start: curriculum stage{walk[0]} -> stage{walk[-1]} from random weights (promotion at "
                 f"{c.threshold:.0%} deterministic success or {c.stage_steps:,} env steps per stage; "
                 f"at most {t.iterations} iterations); start=shipped|scratch to change")
-    steps = t.iterations * t.num_envs * t.steps_per_env
+    steps = t.iterations * t.num_envs * t.steps_per_env * distributed.current().world_size  # all ranks
     if plan.start == "recipe":
         return (f"start: the recipe of a shipped policy, {plan.init or 'random weights'} (task overrides "
                 f"{plan.task_overrides or 'none'}), {plan.task.name} for {t.iterations} iterations = "

@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 import torch
+import yaml
 
 from mjnav.schema import ConfigError
 from mjnav.train import distributed
@@ -97,7 +98,8 @@ def ddp_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("ddp")
     out, digests = root / "runs", root / "digests"
     digests.mkdir()
-    _torchrun([*TINY, "train.iterations=2", f"out={out}"], digests)
+    done = _torchrun([*TINY, "train.iterations=2", f"out={out}"], digests)
+    assert "stage1 for 32 env steps" in done.stdout  # 2 iterations x 2 ranks x 2 envs x 4 steps
     (run_dir,) = out.iterdir()
     return run_dir, digests
 
@@ -120,6 +122,8 @@ def test_rank0_alone_writes_a_single_process_shaped_run_folder(ddp_run, tmp_path
     single = session.run([*TINY, "train.iterations=2", f"out={tmp_path}"])
     assert _shape(run_dir) == _shape(single)
     assert {"config.yaml", "model_1.pt", "policy.pt", "checkpoint_weights.pt", "events"} <= _shape(run_dir)
+    ranks = [yaml.safe_load((folder / "config.yaml").read_text())["run"]["ranks"] for folder in (run_dir, single)]
+    assert ranks == [[2], [1]]  # the launch's processes are recorded
 
 
 def test_resume_loads_the_checkpoint_on_every_rank_and_a_stop_on_one_rank_stops_all(ddp_run, tmp_path):
@@ -130,6 +134,7 @@ def test_resume_loads_the_checkpoint_on_every_rank_and_a_stop_on_one_rank_stops_
     rank0, rank1 = _lines(tmp_path, 0), _lines(tmp_path, 1)
     assert [r[0] for r in rank0] == ["2", "3"] and [r[:2] for r in rank0] == [r[:2] for r in rank1]
     assert (run_dir / "model_3.pt").is_file() and "torch.distributed.run" in done.stdout.split("continue with:")[1]
+    assert yaml.safe_load((run_dir / "config.yaml").read_text())["run"]["ranks"] == [2, 2]
 
 
 def test_rank_seeds_devices_and_backends():
