@@ -128,6 +128,13 @@ def test_unfinished_shards_are_refused_and_episodes_merges_the_first(runs, tmp_p
     assert records(tmp_path / "first" / "stage5.jsonl") == records(runs["whole"] / "stage5.jsonl")[:2]
     assert main(["evaluate", f"merge={cut[0]},{cut[1]}", "episodes=2", f"out={tmp_path / 'cut'}"]) == 0
     assert summary(tmp_path / "cut" / "summary.csv") == summary(tmp_path / "first" / "summary.csv")
+    # records made before planned_episodes existed: the count is the largest index + 1, as then
+    (tmp_path / "old").mkdir()
+    unplanned = lambda r: {key: v for key, v in r.items() if key != "planned_episodes"}  # noqa: E731
+    old = [_shard_copy(runs, tmp_path / "old", k, unplanned) for k in range(2)]
+    merge(old, tmp_path / "old" / "m")
+    merged = read_jsonl(tmp_path / "old" / "m" / "stage5.jsonl")
+    assert [r["index"] for r in merged] == list(range(EPISODES)) and "planned_episodes" not in merged[0]
 
 
 def test_a_shard_file_resumes_and_refuses_another_shard(runs, tmp_path) -> None:
