@@ -38,7 +38,7 @@ from mjnav.eval.runner import (
     write_summaries,
 )
 
-__all__ = ["SHARD_FILE", "merge", "planned", "shard_files"]
+__all__ = ["SHARD_FILE", "merge", "shard_files"]
 
 #: Name of a shard's JSONL file: ``<task>.shard-<i>-of-<n>.jsonl``.
 SHARD_FILE = re.compile(r"^(?P<task>.+)\.shard-(?P<i>\d+)-of-(?P<n>\d+)\.jsonl$")
@@ -69,9 +69,10 @@ def shard_files(sources: Sequence[str | Path]) -> list[Path]:
             raise EvalError(f"merge: no such file or folder {str(source)!r}")
     seen: dict[Path, Path] = {}
     for path in files:
-        if path.resolve() in seen:
-            raise EvalError(f"merge: {path} is named twice (also as {seen[path.resolve()]}): name each shard once")
-        seen[path.resolve()] = path
+        key = path.resolve()
+        if key in seen:
+            raise EvalError(f"merge: {path} is named twice (also as {seen[key]}): name each shard once")
+        seen[key] = path
     return list(seen)
 
 
@@ -108,7 +109,7 @@ def _by_task(files: Sequence[Path]) -> dict[str, dict[int, tuple[Path, dict[str,
     return tasks
 
 
-def planned(episodes: dict[int, tuple[Path, dict[str, Any]]]) -> int:
+def _planned(episodes: dict[int, tuple[Path, dict[str, Any]]]) -> int:
     """The episode count of the evaluation the records come from: their largest ``planned_episodes``
     (the largest index + 1 for records made before that field)."""
     counts = [r.get("planned_episodes") for _, r in episodes.values()]
@@ -152,7 +153,7 @@ def merge(sources: Sequence[str | Path], out_dir: str | Path, episodes: int | No
         sources: Shard folders and JSONL files (:func:`shard_files`).
         out_dir: Folder of the merged files (may be a shards' folder).
         episodes: Episodes per task of the merged evaluation (the first ones); None: the count the
-            shards were run with (:func:`planned`).
+            shards were run with (:func:`_planned`).
 
     Returns:
         One summary row per task (:func:`mjnav.eval.runner.summarise`), as an unsharded
@@ -169,7 +170,7 @@ def merge(sources: Sequence[str | Path], out_dir: str | Path, episodes: int | No
     tasks = _by_task(shard_files(sources))
     if not tasks:
         raise EvalError("merge: the files hold no episodes")
-    wanted = {task: episodes or planned(found) for task, found in tasks.items()}
+    wanted = {task: episodes or _planned(found) for task, found in tasks.items()}
     merged = {task: _merged(task, found, wanted[task]) for task, found in tasks.items()}
     out, rows = Path(out_dir), []
     for task, records in merged.items():
