@@ -34,16 +34,17 @@ def test_step_parts_add_up_to_the_collection_time(tmp_path) -> None:
 
 
 def test_cli_prints_rates_ratios_and_parts(capsys: pytest.CaptureFixture) -> None:
-    argv = ["bench", "collect", "task=stage1", "workers=1,2", "main_envs=-1,1", "rounds=1", "single_steps=5",
-            *(f"train.{t}" for t in TINY)]
+    argv = ["bench", "collect", "task=stage1", "workers=1,2", "main_envs=-1,1", "pipeline=true,false", "rounds=1",
+            "single_steps=5", *(f"train.{t}" for t in TINY)]
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert out.count("| 1 | ") == 4 and out.count("| 2 | ") == 4 and out.count("| 2, main 1 | ") == 4  # four tables
+    assert out.count("| 2, rsl-rl order | ") == 4 and out.count("| 2, main 1, rsl-rl order | ") == 4
     assert "x one environment" in out and "PPO update" in out and "estimate on cores of their own" in out
 
 
 @pytest.mark.parametrize(("arg", "key"), [("workers=1,0", "workers"), ("main_envs=x", "main_envs"),
-                                          ("main_envs=64", "main_envs")])
+                                          ("main_envs=64", "main_envs"), ("pipeline=yes", "pipeline")])
 def test_bad_list_is_one_error_line(capsys: pytest.CaptureFixture, arg: str, key: str) -> None:
     assert main(["bench", "collect", arg]) == 2
     err = capsys.readouterr().err

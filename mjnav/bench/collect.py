@@ -1,18 +1,22 @@
 """``mjnav bench collect``: PPO collection steps/s for 1, 2, ... workers, with where each step goes.
 
-    mjnav bench collect task=stage7 [workers=1,2] [main_envs=-1,30] [rounds=3] [train.steps_per_env=64] [train.device=cuda]
+    mjnav bench collect task=stage7 [workers=1,2] [main_envs=-1,30] [pipeline=true,false] [rounds=3]
+        [train.steps_per_env=64] [train.device=cuda]
 
 Builds one training runner (:func:`mjnav.train.runner.build_runner`, the adapter of
 ``train.num_envs`` environments, rsl-rl's PPO) per worker count in ``workers`` (and, with 2 or
-more workers, per trainer share in ``main_envs``: ``train.main_envs``) and one environment alone, then times them in ``rounds`` interleaved rounds (each round: one PPO
-iteration of every runner, ``single_steps`` random-action steps of the single environment, in
-alternating order; :mod:`mjnav.timing`). Prints, with medians over rounds:
+more workers, per trainer share in ``main_envs``: ``train.main_envs``; and per setting in
+``pipeline``: ``train.pipeline``) and one environment alone, then times them in ``rounds``
+interleaved rounds (each round: one PPO iteration of every runner, ``single_steps``
+random-action steps of the single environment, in alternating order; :mod:`mjnav.timing`).
+Prints, with medians over rounds:
 
 * steps/s: collection (the rollout loop), the adapter's ``env.step`` alone (comparable with the
   single environment), the whole iteration (collection and update), and their ratios to 1
   worker and to the single environment;
 * where one rollout step (all environments) goes, ms: the trainer's policy inference
-  (``alg.act``), then inside ``env.step`` this process's own block, its wait for the worker
+  (``alg.act``; with the pipeline also the dispatch of the actions and the previous step's
+  storage), then inside ``env.step`` this process's own block, its wait for the worker
   processes, the transfers through the shared buffers and the adapter's bookkeeping, then the
   PPO storage (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed
   inside the worker processes, their mean and longest step and the share of the step they are
@@ -68,6 +72,10 @@ class CollectOptions:
             comma-separated, as in 1,2,4,8,15; cores is one per usable core.
         main_envs: Trainer shares to compare with 2 or more workers, comma-separated
             (``train.main_envs``: the environments the trainer steps itself; -1: an even share).
+        pipeline: ``train.pipeline`` settings to compare, comma-separated (``true,false``): the
+            trainer dispatches each step's actions before its value estimates and storage, or
+            keeps rsl-rl's order; with ``true`` the policy part holds the dispatch and the previous
+            step's storage as well (:mod:`mjnav.train.ppo`).
         rounds: Interleaved timing rounds (one PPO iteration of every configuration per round).
         single_steps: Random-action steps of the single environment per round.
     """
@@ -75,6 +83,7 @@ class CollectOptions:
     task: str = "stage7"
     workers: str = "1,2"
     main_envs: str = "-1"
+    pipeline: str = "true"
     rounds: int = 3
     single_steps: int = 400
 
@@ -205,7 +214,7 @@ def run(parsed: Parsed, argv: list[str]) -> int:
             raise ConfigError(f"rounds and single_steps must be >= 1, got {opts.rounds} and {opts.single_steps}")
         config = load_task(opts.task, list(parsed.task))
         train = load_train(list(parsed.train))
-        configs = _configs(parse_workers(opts.workers, train.num_envs), opts.main_envs, train)
+        configs = _configs(parse_workers(opts.workers, train.num_envs), opts.main_envs, opts.pipeline, train)
     except (ConfigError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -213,21 +222,27 @@ def run(parsed: Parsed, argv: list[str]) -> int:
     return 0
 
 
-def _configs(counts: list[int], shares: str, train: TrainConfig) -> dict[str, TrainConfig]:
-    """Training configs by row label: each worker count, with each trainer share when it has >= 2 workers.
+def _configs(counts: list[int], shares: str, pipeline: str, train: TrainConfig) -> dict[str, TrainConfig]:
+    """Training configs by row label: each worker count, with each trainer share when it has >= 2
+    workers, and each pipeline setting (labelled ``rsl-rl order`` when off).
 
     Raises:
-        ConfigError: ``shares`` is not a list of -1 or counts in [1, num_envs).
+        ConfigError: ``shares`` is not a list of -1 or counts in [1, num_envs), or ``pipeline``
+            not a list of true and false.
     """
     try:
         values = [int(v) for v in str(shares).split(",")]
     except ValueError:
         raise ConfigError(f"main_envs: expected comma-separated integers, got {shares!r}") from None
+    settings = [v.strip().lower() for v in str(pipeline).split(",")]
+    if not settings or any(v not in ("true", "false") for v in settings):
+        raise ConfigError(f"pipeline: expected comma-separated true or false, got {pipeline!r}")
     configs = {}
     for w in counts:
         for m in values if w >= 2 else [-1]:
-            label = f"{w}" if m < 0 else f"{w}, main {m}"
-            configs[label] = load_train([f"workers={w}", f"main_envs={m}"], base=train)
+            for setting in settings:
+                label = (f"{w}" if m < 0 else f"{w}, main {m}") + ("" if setting == "true" else ", rsl-rl order")
+                configs[label] = load_train([f"workers={w}", f"main_envs={m}", f"pipeline={setting}"], base=train)
     return configs
 
 

@@ -26,6 +26,11 @@ the mean and the longest time the worker processes took to step their blocks, ti
 a core on a shared machine).
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
+:meth:`NavVecEnv.dispatch` starts a step early: the worker processes step with the actions while
+the caller goes on (PPO's value estimates and storage), and the next :meth:`NavVecEnv.step` with
+the same actions steps this process's block and collects; the results are those of ``step``
+alone. The ``perf/*`` times then leave out the dispatch (writing the actions, sending the command).
+
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
 environment's own generator, so the same seed and actions give the same rollouts.
 """
@@ -155,6 +160,8 @@ class NavVecEnv(VecEnv):
         self._shm: SharedMemory | None = None
         self._closed = False
         self._split = (0.0, 0.0, 0.0)  # seconds of the last call: own block, wait, sending the command
+        self._sent_s = 0.0
+        self._pending: np.ndarray | None = None  # episode lengths after the dispatched step
         self._remote = 0  # worker processes (the first handles)
         try:
             self._start(env_fn, start_method, start_timeout_s, max_episode_length)
@@ -214,30 +221,51 @@ class NavVecEnv(VecEnv):
         self.max_episode_length = int(limit)
 
     def _call(self, command: str, arg: Any = None) -> list[Any]:
-        """Send ``command`` to every worker, then collect the replies; close everything on failure.
+        """Send ``command`` to every worker, then collect the replies; close everything on failure."""
+        self._send(command, arg)
+        return self._finish(command, arg)
 
-        Notes in ``_split`` the seconds this process spent on its own block (the last handle, when
-        local; 0 otherwise), the seconds it then waited for the replies and the seconds it took to
-        send the command to the worker processes.
+    def _send(self, command: str, arg: Any = None) -> None:
+        """Send ``command`` to the worker processes (not to this process's own block).
+
+        Notes in ``_sent_s`` the seconds it took; closes everything on failure.
+        """
+        begin = time.perf_counter()
+        try:
+            for handle in self._handles[: self._remote]:
+                handle.request(command, arg)
+        except BaseException:
+            self.close()
+            raise
+        self._sent_s = time.perf_counter() - begin
+
+    def _finish(self, command: str, arg: Any = None) -> list[Any]:
+        """Run ``command`` on this process's own block (when it steps one), then collect every reply.
+
+        The worker processes must have been sent ``command`` (:meth:`_send`). Notes in ``_split``
+        the seconds this process spent on its own block (0 when it steps none), the seconds it
+        then waited for the replies and the seconds the send took; closes everything on failure.
         """
         try:
-            *others, last = self._handles
-            begin = time.perf_counter()
-            for handle in others:
-                handle.request(command, arg)
             start = time.perf_counter()
-            last.request(command, arg)
+            local = self._handles[self._remote :]
+            for handle in local:
+                handle.request(command, arg)
             ready = time.perf_counter()
             replies = [handle.result(self.step_timeout_s) for handle in self._handles]
-            own = ready - start if isinstance(last, _LocalHandle) else 0.0
-            self._split = (own, time.perf_counter() - ready, start - begin)
+            self._split = (ready - start if local else 0.0, time.perf_counter() - ready, self._sent_s)
             return replies
         except BaseException:
             self.close()
             raise
 
     def reset(self) -> TensorDict:
-        """Reset every environment and the episode clock (the runner never calls this)."""
+        """Reset every environment and the episode clock (the runner never calls this).
+
+        Raises:
+            RuntimeError: A step was dispatched and not yet finished by :meth:`step`.
+        """
+        self._check_idle("reset")
         self._call("reset")
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self._returns = np.zeros(self.num_envs)
@@ -258,8 +286,43 @@ class NavVecEnv(VecEnv):
             groups["critic"] = self._critic.clone()
         return TensorDict(groups, batch_size=[self.num_envs], device=self.device)
 
+    def dispatch(self, actions: torch.Tensor) -> None:
+        """Start a step: the worker processes step their blocks with ``actions`` while this returns.
+
+        :meth:`step` with the same actions then steps this process's own block and collects the
+        results, exactly those of :meth:`step` alone. In between, the caller may do its own work
+        (PPO's value estimates and storage: :class:`mjnav.train.ppo.PipelinedPPO`) while the
+        worker processes step, instead of before they start. Without worker processes it only
+        checks and stores the actions.
+
+        Args:
+            actions: Raw policy outputs, shape (N, num_actions).
+
+        Raises:
+            ValueError: Actions of the wrong shape or with NaN/inf (nothing is started).
+            RuntimeError: A step is already dispatched (call :meth:`step` first).
+            EnvError: A worker died; the adapter is closed.
+        """
+        self._check_idle("dispatch")
+        self._start_step(actions)
+
+    def _start_step(self, actions: torch.Tensor) -> None:
+        """Check and write the actions and the forced truncations, send the step to the worker processes."""
+        values = self._checked_actions(actions)
+        lengths = self.episode_length_buf.cpu().numpy() + 1
+        self._buf["actions"][:] = values
+        self._buf["force"][:] = lengths >= self.max_episode_length
+        self._send("step")
+        self._pending = lengths
+
+    def _check_idle(self, call: str) -> None:
+        if self._pending is not None:
+            raise RuntimeError(f"{call}() while a dispatched step is running: call step() with its actions first")
+
     def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
         """Step every environment; finished ones are reset and report the new episode's observation.
+
+        Finishes the step :meth:`dispatch` started, when it was called with these actions.
 
         Args:
             actions: Raw policy outputs, shape (N, num_actions).
@@ -269,15 +332,22 @@ class NavVecEnv(VecEnv):
             ``outcomes`` (N,) int8 and ``log``.
 
         Raises:
-            ValueError: Actions of the wrong shape or with NaN/inf (the envs are not stepped).
+            ValueError: Actions of the wrong shape or with NaN/inf (the envs are not stepped), or
+                not those of the dispatched step (the adapter is closed: its worker processes
+                already stepped with the dispatched ones).
             EnvError: An environment raised or a worker died; the adapter is closed.
         """
         start = time.perf_counter()
-        self._write_actions(actions)
-        lengths = self.episode_length_buf.cpu().numpy() + 1
-        self._buf["force"][:] = lengths >= self.max_episode_length
+        if self._pending is None:
+            self._start_step(actions)
+        elif not np.array_equal(self._checked_actions(actions), self._buf["actions"]):
+            self.close()
+            raise ValueError("step() got other actions than dispatch(): the worker processes stepped with "
+                             "the dispatched ones, so the adapter is closed")
+        lengths = self._pending
+        self._pending = None
         sent = time.perf_counter()
-        replies = self._call("step")
+        replies = self._finish("step")
         received = time.perf_counter()
         buf = self._buf
         rewards, outcome = buf["rewards"].copy(), buf["outcome"].copy()
@@ -312,7 +382,8 @@ class NavVecEnv(VecEnv):
         log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
         log["perf/worker_cpu_max_ms"] = 1e3 * max((reply[4] for reply in replies[: self._remote]), default=0.0)
 
-    def _write_actions(self, actions: torch.Tensor) -> None:
+    def _checked_actions(self, actions: torch.Tensor) -> np.ndarray:
+        """``actions`` as float32 numpy (N, num_actions); ValueError for a wrong shape or NaN/inf."""
         values = actions.detach().to("cpu", torch.float32).numpy()
         if values.shape != (self.num_envs, self.num_actions):
             raise ValueError(
@@ -322,7 +393,7 @@ class NavVecEnv(VecEnv):
         if not finite.all():
             bad = np.flatnonzero(~finite).tolist()
             raise ValueError(f"non-finite actions (NaN/inf) for envs {bad[:16]}: the policy diverged")
-        self._buf["actions"][:] = values
+        return values
 
     def _log(self, done: np.ndarray, outcome: np.ndarray, replies: list[tuple]) -> dict[str, Any]:
         """``extras["log"]``: finished-episode metrics, reward-term and MPC means."""

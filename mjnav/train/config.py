@@ -132,6 +132,10 @@ class TrainConfig:
             the trainer time for its own per-step work (policy inference, the adapter's and PPO's
             bookkeeping) while the worker processes step; rollouts are the same for any value
             (``mjnav bench collect`` shows the trainer's share).
+        pipeline: Hand each step's actions to the worker processes before the trainer's value
+            estimates and storage, so that those overlap the workers' stepping
+            (:class:`mjnav.train.ppo.PipelinedPPO`); the rollouts and updates are rsl-rl's bit for
+            bit either way. False: rsl-rl's PPO unchanged.
         start_method: Worker start method (``forkserver`` or ``spawn``; never plain fork with torch).
         iterations: Total PPO iterations of the run (a resumed run continues up to this).
         steps_per_env: Rollout length per environment and iteration.
@@ -174,6 +178,7 @@ class TrainConfig:
     num_envs: int = 64
     workers: int = -1
     main_envs: int = -1
+    pipeline: bool = True
     start_method: Literal["forkserver", "spawn"] = "forkserver"
     iterations: int = 1000
     steps_per_env: int = 256

@@ -140,7 +140,7 @@ def rsl_config(train: TrainConfig, label: str = "", privileged_critic: bool = Fa
             "steps_per_env": train.steps_per_env,
         },
         "algorithm": {
-            "class_name": "PPO",
+            "class_name": "mjnav.train.ppo:PipelinedPPO" if train.pipeline else "PPO",
             "num_learning_epochs": train.epochs,
             "num_mini_batches": train.minibatches,
             "clip_param": train.clip,

@@ -346,3 +346,40 @@ def test_nan_actions_rejected() -> None:
         actions[1, 2] = float("nan")
         with pytest.raises(ValueError, match=r"envs \[1\]"):
             env.step(actions)
+
+
+def test_dispatch_then_step_gives_the_step_alone(workers: dict) -> None:
+    """A step started with dispatch() and finished by step() returns what step() alone returns."""
+    runs = []
+    for early in (False, True):
+        gen = torch.Generator().manual_seed(5)
+        out = []
+        with NavVecEnv(FakeFactory(limit=6), num_envs=4, seed=9, **workers) as env:
+            for _ in range(14):
+                actions = torch.randn(env.num_envs, env.num_actions, generator=gen)
+                if early:
+                    env.dispatch(actions)
+                obs, rew, dones, extras = env.step(actions.clone())  # equal values, another tensor
+                out.append((obs["policy"], rew, dones, extras["time_outs"], extras["outcomes"]))
+        runs.append(out)
+    for plain, early in zip(*runs, strict=True):
+        assert all(torch.equal(a, b) for a, b in zip(plain, early, strict=True))
+
+
+def test_dispatch_misuse_is_refused() -> None:
+    """A second dispatch or a reset before step() is a RuntimeError (the step still finishes); step()
+    with other actions than the dispatched ones closes the adapter; bad actions start nothing."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
+        actions = torch.zeros(4, ACT_DIM)
+        with pytest.raises(ValueError, match="non-finite"):
+            env.dispatch(torch.full((4, ACT_DIM), float("nan")))
+        env.dispatch(actions)
+        with pytest.raises(RuntimeError, match="dispatched step"):
+            env.dispatch(actions)
+        with pytest.raises(RuntimeError, match="dispatched step"):
+            env.reset()
+        env.step(actions)
+        env.dispatch(actions)
+        with pytest.raises(ValueError, match="other actions than dispatch"):
+            env.step(actions + 1.0)
+        assert env._closed
