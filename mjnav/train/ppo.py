@@ -10,8 +10,9 @@ step of 64 environments, measured on the 2-core box (docs/notebook/suite-scale.m
 :class:`PipelinedPPO` does the same work in another order. ``act`` samples the actions as rsl-rl
 does and hands them at once to the adapter's ``dispatch``, so the worker processes start
 stepping; then it stores the previous step's transition (``process_env_step`` only keeps its
-arguments until here) and evaluates the critic and the log-probabilities for the new one.
-``compute_returns`` first stores the rollout's last transition. The same operations run on the
+arguments until here, and so do rsl-rl's logger's when wrapped by :meth:`PipelinedPPO.deferring`)
+and evaluates the critic and the log-probabilities for the new one. ``compute_returns`` first
+stores the rollout's last transition. The same operations run on the
 same tensors, so rollouts, storage and updates are rsl-rl's bit for bit
 (``tests/train/test_ppo.py``). It keeps rsl-rl's order for recurrent models and RND (where storing
 a step feeds the next action) and for environments without ``dispatch``.
@@ -19,6 +20,7 @@ a step feeds the next action) and for environments without ``dispatch``.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -39,7 +41,7 @@ class PipelinedPPO(PPO):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._dispatch: Callable[[torch.Tensor], None] | None = None
-        self._deferred: tuple | None = None  # process_env_step's arguments, stored at the next act
+        self._deferred: list[tuple[Callable, tuple]] = []  # calls kept for the next act
 
     @staticmethod
     def construct_algorithm(obs: TensorDict, env: Any, cfg: dict, device: str) -> PPO:
@@ -88,7 +90,24 @@ class PipelinedPPO(PPO):
         if self._dispatch is None:
             super().process_env_step(obs, rewards, dones, extras)
         else:
-            self._deferred = (obs, rewards, dones, extras)
+            self._deferred.append((super().process_env_step, (obs, rewards, dones, extras)))
+
+    def deferring(self, method: Callable[..., None]) -> Callable[..., None]:
+        """``method`` made to run when this step's transition is stored, while pipelined.
+
+        For other per-step bookkeeping of the rollout loop that reads nothing the next action
+        needs, such as rsl-rl's logger (``runner.logger.process_env_step``): it then also
+        overlaps the worker processes' stepping, in its original order.
+        """
+
+        @functools.wraps(method)
+        def deferred(*args: Any, **kwargs: Any) -> None:
+            if self._dispatch is None:
+                method(*args, **kwargs)
+            else:
+                self._deferred.append((functools.partial(method, **kwargs), args))
+
+        return deferred
 
     def compute_returns(self, obs: TensorDict) -> None:
         """Store the rollout's last step, then rsl-rl's returns and advantages."""
@@ -96,6 +115,6 @@ class PipelinedPPO(PPO):
         super().compute_returns(obs)
 
     def _store_deferred(self) -> None:
-        if self._deferred is not None:
-            args, self._deferred = self._deferred, None
-            super().process_env_step(*args)
+        calls, self._deferred = self._deferred, []
+        for method, args in calls:
+            method(*args)

@@ -44,6 +44,7 @@ from mjnav.envs.gym_env import make_gym_env
 from mjnav.envs.vec_env import NavVecEnv
 from mjnav.train import distributed
 from mjnav.train.config import TrainConfig
+from mjnav.train.ppo import PipelinedPPO
 
 if TYPE_CHECKING:
     from mjnav.config import TaskConfig
@@ -197,6 +198,8 @@ def build_runner(
             train.device,
         )
     runner.add_git_repo_to_log(str(Path(__file__).resolve()))  # git diff of mjnav into <run>/git/
+    if isinstance(runner.alg, PipelinedPPO):  # the logger's per-step work also overlaps the workers
+        runner.logger.process_env_step = runner.alg.deferring(runner.logger.process_env_step)
     _thread_the_update(runner, train.update_threads or distributed.rank_cores(ranks))
     _warm_up_critic(runner, train.critic_warmup)
     if ranks.distributed:
@@ -309,6 +312,8 @@ def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool 
     """
     runner.logger.cfg["logger"]["start_iteration"] = runner.current_learning_iteration
     runner.mjnav_iteration = runner.current_learning_iteration  # type: ignore[attr-defined]
+    if isinstance(runner.alg, PipelinedPPO):
+        runner.alg.connect(runner.env)  # this chunk's environment: the curriculum swaps it between stages
     try:
         with contextlib.redirect_stdout(_BlockFilter(sys.stdout, getattr(runner, "mjnav_verbose", False))):
             runner.learn(iterations, init_at_random_ep_len=random_initial_lengths)

@@ -33,17 +33,20 @@ def _train(tmp_path: Path, pipeline: bool, workers: int) -> tuple[dict, dict, ob
         stored["observations"] = stored["observations"]["policy"]
         weights = {k: v.clone() for k, v in runner.alg.actor.state_dict().items()}
         weights.update({f"critic.{k}": v.clone() for k, v in runner.alg.critic.state_dict().items()})
-        return weights, stored, (type(runner.alg), len(dispatched))
+        logged = (list(runner.logger.rewbuffer), list(runner.logger.lenbuffer))
+        return weights, stored, (type(runner.alg), len(dispatched), logged)
 
 
 @pytest.mark.parametrize("workers", [0, 2], ids=["inprocess", "main+1process"])
 def test_pipelined_ppo_trains_bit_for_bit_like_rsl_rl(tmp_path: Path, workers: int) -> None:
-    """Same weights after two iterations and the same last rollout (observations, actions, values,
-    log-probabilities, returns) as rsl-rl's PPO; every step's actions went through dispatch."""
-    plain_weights, plain_stored, (plain_class, plain_dispatched) = _train(tmp_path, False, workers)
-    weights, stored, (cls, dispatched) = _train(tmp_path, True, workers)
+    """Same weights after two iterations, the same last rollout (observations, actions, values,
+    log-probabilities, returns) and the same logged episodes as rsl-rl's PPO; every step's actions
+    went through dispatch."""
+    plain_weights, plain_stored, (plain_class, plain_dispatched, plain_logged) = _train(tmp_path, False, workers)
+    weights, stored, (cls, dispatched, logged) = _train(tmp_path, True, workers)
     assert plain_class is PPO and plain_dispatched == 0
     assert cls is PipelinedPPO and dispatched == 2 * 8
+    assert logged == plain_logged and len(logged[0]) > 0  # the logger's episode returns and lengths
     for name in STORED:
         assert torch.equal(stored[name], plain_stored[name]), name
     assert weights.keys() == plain_weights.keys()
