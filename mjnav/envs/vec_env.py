@@ -344,6 +344,8 @@ class NavVecEnv(VecEnv):
             self.close()
             raise ValueError("step() got other actions than dispatch(): the worker processes stepped with "
                              "the dispatched ones, so the adapter is closed")
+        else:
+            self._sent_s = 0.0  # the command went out before this call: not part of its time
         lengths = self._pending
         self._pending = None
         sent = time.perf_counter()
