@@ -298,15 +298,15 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
               f"{np.median(values) / first:.2f} | {env_rates[w]:,.0f} | {env_rates[w] / env_rates[counts[0]]:.2f} | "
               f"{env_rates[w] / one:.2f} | {whole:,.0f} |")
     print("\n| rollout step, ms (share) | " + " | ".join(STEP_PARTS) +
-          " | worker processes' step: mean / longest | worker processes busy |")
-    print("|---|" + "---|" * (len(STEP_PARTS) + 2))
+          " | whole step | worker processes' step: mean / longest | worker processes busy |")
+    print("|---|" + "---|" * (len(STEP_PARTS) + 3))
     for w, b in benches.items():
         parts, s = b.step_parts(), b.seconds
         total = sum(parts.values()) or 1.0
         n = max(s["steps"], 1)
         busy = f"{1e3 * s['worker_step'] / n / total:.0%}" if s["worker_step"] else "-"
         cells = " | ".join(f"{parts[p]:.2f} ({parts[p] / total:.0%})" for p in STEP_PARTS)
-        print(f"| {w} | {cells} | {1e3 * s['worker_step'] / n:.2f} / "
+        print(f"| {w} | {cells} | {total:.2f} | {1e3 * s['worker_step'] / n:.2f} / "
               f"{1e3 * s['worker_step_max'] / n:.2f} | {busy} |")
     estimates = {w: b.cpu_estimate() for w, b in benches.items()}
     base = estimates[counts[0]][2]
