@@ -19,11 +19,11 @@ per episode finished at this step, ``reward/<term>`` the per-step mean over all 
 none), ``perf/wait_ms`` the part it then waited for the worker processes and
 ``perf/transfer_ms`` the part spent moving actions into and observations, rewards and flags out
 of the shared buffers (with the tensors made of them) and sending the step command down the
-pipes; the rest of a step is the adapter's own bookkeeping (episode clock, logs). ``perf/worker_step_ms`` and ``perf/worker_step_max_ms`` are
-the mean and the longest time the worker processes took to step their blocks, timed inside them
-(0 without worker processes): ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency;
-``perf/worker_cpu_max_ms`` is the largest CPU time among them (without the time spent waiting for
-a core on a shared machine).
+pipes; the rest of a step is the adapter's own bookkeeping (episode clock, logs).
+``perf/worker_step_ms`` and ``perf/worker_step_max_ms`` are the mean and the longest time the
+worker processes took to step their blocks, timed inside them (0 without worker processes):
+``wait`` beyond ``worker_step_max - own_block`` is hand-off latency; ``perf/worker_cpu_max_ms`` is
+the largest CPU time among them (without the time spent waiting for a core on a shared machine).
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 :meth:`NavVecEnv.dispatch` starts a step early: the worker processes step with the actions while

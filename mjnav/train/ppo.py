@@ -5,7 +5,7 @@ log-probabilities (:meth:`PPO.act`), steps the environments, then stores the tra
 (:meth:`PPO.process_env_step`). With :class:`mjnav.envs.vec_env.NavVecEnv`'s worker processes
 stepping most environments, everything the trainer does between one step's results and the next
 step's actions leaves them idle: 1.7 ms of the policy and about 0.9 ms of storage and logs per
-step of 64 environments, measured on the 2-core box (docs/notebook/suite-scale.md).
+step of 64 environments, measured on the 2-core development machine (the performance page).
 
 :class:`PipelinedPPO` does the same work in another order. ``act`` samples the actions as rsl-rl
 does and hands them at once to the adapter's ``dispatch``, so the worker processes start
