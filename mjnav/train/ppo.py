@@ -12,10 +12,10 @@ does and hands them at once to the adapter's ``dispatch``, so the worker process
 stepping; then it stores the previous step's transition (``process_env_step`` only keeps its
 arguments until here, and so do rsl-rl's logger's when wrapped by :meth:`PipelinedPPO.deferring`)
 and evaluates the critic and the log-probabilities for the new one. ``compute_returns`` first
-stores the rollout's last transition. The same operations run on the
-same tensors, so rollouts, storage and updates are rsl-rl's bit for bit
-(``tests/train/test_ppo.py``). It keeps rsl-rl's order for recurrent models and RND (where storing
-a step feeds the next action) and for environments without ``dispatch``.
+stores the rollout's last transition. The same operations run on the same tensors, so rollouts,
+storage and updates are rsl-rl's bit for bit (``tests/train/test_ppo.py``). It keeps rsl-rl's
+order for recurrent models and RND (where storing a step feeds the next action) and for
+environments without ``dispatch``.
 """
 
 from __future__ import annotations
@@ -32,11 +32,8 @@ __all__ = ["PipelinedPPO"]
 
 
 class PipelinedPPO(PPO):
-    """rsl-rl's PPO that dispatches each step's actions before its value estimates and storage.
-
-    Attributes:
-        pipelined: Whether actions go to the environment's ``dispatch`` (see :meth:`connect`).
-    """
+    """rsl-rl's PPO that dispatches each step's actions before its value estimates and storage
+    (see :meth:`connect` for where it does)."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -65,6 +62,7 @@ class PipelinedPPO(PPO):
 
     @property
     def pipelined(self) -> bool:
+        """Whether actions go to the environment's ``dispatch``."""
         return self._dispatch is not None
 
     def act(self, obs: TensorDict) -> torch.Tensor:
