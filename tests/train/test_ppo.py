@@ -25,9 +25,7 @@ def _train(tmp_path: Path, pipeline: bool, workers: int) -> tuple[dict, dict, ob
         dispatched = []
         dispatch = env.dispatch
         env.dispatch = lambda actions: (dispatched.append(1), dispatch(actions))[1]
-        if isinstance(runner.alg, PipelinedPPO):
-            runner.alg.connect(env)  # again, so that it holds the counting wrapper
-        learn(runner, 2)
+        learn(runner, 2)  # connects the pipeline to runner.env, so to the counting dispatch
         storage = runner.alg.storage
         stored = {name: getattr(storage, name).clone() for name in STORED}
         stored["observations"] = stored["observations"]["policy"]
