@@ -235,7 +235,7 @@ def _configs(counts: list[int], shares: str, pipeline: str, train: TrainConfig) 
     except ValueError:
         raise ConfigError(f"main_envs: expected comma-separated integers, got {shares!r}") from None
     settings = [v.strip().lower() for v in str(pipeline).split(",")]
-    if not settings or any(v not in ("true", "false") for v in settings):
+    if any(v not in ("true", "false") for v in settings):  # "".split(",") is [""]: refused too
         raise ConfigError(f"pipeline: expected comma-separated true or false, got {pipeline!r}")
     configs = {}
     for w in counts:

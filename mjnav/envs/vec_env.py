@@ -340,7 +340,8 @@ class NavVecEnv(VecEnv):
         start = time.perf_counter()
         if self._pending is None:
             self._start_step(actions)
-        elif not np.array_equal(self._checked_actions(actions), self._buf["actions"]):
+        elif not np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), self._buf["actions"]):
+            # the dispatched actions were checked (shape, finite) before they went out
             self.close()
             raise ValueError("step() got other actions than dispatch(): the worker processes stepped with "
                              "the dispatched ones, so the adapter is closed")

@@ -42,7 +42,6 @@ def beam_angles(beams: int) -> np.ndarray:
     return np.arange(beams, dtype=np.float64) * (2.0 * np.pi / beams)
 
 
-
 _TRIG_CACHE: dict[bytes, tuple[np.ndarray, np.ndarray, bool]] = {}
 
 
@@ -62,6 +61,7 @@ def beam_trig(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
         hit = (np.cos(angles), np.sin(angles), ordered)
         _TRIG_CACHE[key] = hit
     return hit
+
 
 def wall_segments(size: tuple[float, float] | Sequence[float]) -> np.ndarray:
     """Inner faces of the arena walls around an interior centred on the origin.
