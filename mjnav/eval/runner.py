@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import math
 import multiprocessing as mp
@@ -38,6 +39,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -420,11 +422,8 @@ _WORKER: dict[str, Any] = {}
 
 
 def _init_worker(spec: EvalSpec) -> None:
-    """Pool initializer: a failure is kept and raised by the first task.
-
-    An exception escaping a ``multiprocessing.Pool`` initializer makes the pool start a new worker,
-    which fails again, forever: the evaluation would hang instead of reporting the error.
-    """
+    """Build this worker's environment and policy; a failure is kept and raised by each episode
+    (:func:`_work`), so the parent reports it as one :class:`EvalError` with the cause."""
     _WORKER.clear()
     try:
         _setup_worker(spec)
@@ -490,22 +489,38 @@ def _check_policy(spec: EvalSpec) -> None:
 
 
 def _local_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
-    """Episodes in this process (``workers`` <= 1) or a pool of ``workers`` spawned processes."""
+    """Episodes in this process (``workers`` <= 1) or in ``workers`` spawned processes, yielded
+    chunk by chunk (at most 8 episodes, so the JSONL and the progress advance often) as they finish.
+
+    A :class:`concurrent.futures.ProcessPoolExecutor` with one chunk per worker in flight, shut down
+    and never killed. ``multiprocessing.Pool`` ended an evaluation with ``terminate()``, which hung
+    for good about once in ten failed worker setups: it killed a worker that was sending a result,
+    and its task-handler thread then waited on the lock the dead worker held. On an error or an
+    early close the pending chunks are dropped and the running ones (at most 8 episodes each) end
+    first; Ctrl-C reaches the workers too and stops them at once.
+    """
     if spec.workers <= 1:
         _init_worker(spec)
         yield from map(_work, indices)
         return
     _check_policy(spec)
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(spec.workers, initializer=_init_worker, initargs=(spec,)) as pool:
-        chunk = max(1, min(8, len(indices) // (4 * spec.workers)))
-        yield from pool.imap_unordered(_work, indices, chunksize=chunk)
+    chunks = iter(_chunks(indices, spec.workers, most=8))
+    pool = ProcessPoolExecutor(spec.workers, mp_context=mp.get_context("spawn"))
+    try:
+        running = {pool.submit(_run_chunk, spec, chunk) for chunk in itertools.islice(chunks, spec.workers)}
+        while running:
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            running |= {pool.submit(_run_chunk, spec, chunk) for chunk in itertools.islice(chunks, len(done))}
+            for future in done:
+                yield from future.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_chunk(spec: EvalSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
-    """One Ray task: episodes ``indices`` in this worker process.
+    """One task of a local worker process or of Ray: episodes ``indices`` in this process.
 
-    Ray reuses a worker process for many tasks, so the environment and policy are built by the
+    A worker process runs many tasks, so the environment and policy are built by the
     first task the process runs and kept for the next ones (:data:`_WORKER`), also across
     evaluations that differ only in their episodes (:attr:`EvalSpec.setup`).
     """
@@ -516,10 +531,12 @@ def _run_chunk(spec: EvalSpec, indices: Sequence[int]) -> list[dict[str, Any]]:
     return [_work(index) for index in indices]
 
 
-def _chunks(indices: Sequence[int], workers: int) -> list[list[int]]:
+def _chunks(indices: Sequence[int], workers: int, most: int | None = None) -> list[list[int]]:
     """``indices`` cut into about four consecutive chunks per worker (a slow chunk is not the last one
-    to start), each at least one episode."""
+    to start), each at least one episode and at most ``most`` (None: no limit)."""
     size = max(1, math.ceil(len(indices) / (4 * max(1, workers))))
+    if most is not None:
+        size = min(size, most)
     return [list(indices[k:k + size]) for k in range(0, len(indices), size)]
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import multiprocessing
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ from mjnav.eval.runner import (
 )
 
 from mjnav.schema import ConfigError
+from tests.eval._same import records, summary
 
 OVERRIDES = ("timing.episode_steps=20",)
 
@@ -114,10 +116,31 @@ def test_unloadable_policy_is_one_error_line_not_a_hang(tmp_path, capsys, worker
 
 
 def test_worker_setup_failure_reaches_the_parent(tmp_path):
-    """A worker whose setup fails reports the error through its first task instead of being respawned."""
+    """A worker whose setup fails reports the error through its first task instead of being respawned,
+    and the worker processes are gone when the error arrives."""
     spec = EvalSpec("stage5", "mpc_goal", 2, 0, ("crowd.bogus=1",), 2)
     with pytest.raises(EvalError, match="crowd.bogus"):
         list(_results(spec, range(spec.episodes)))
+    assert multiprocessing.active_children() == []
+
+
+def test_two_local_workers_give_the_records_of_one(tmp_path):
+    """Episodes spread over worker processes in chunks give the in-process records, episode for episode."""
+    spec = EvalSpec("stage5", "mpc_goal", 5, 0, OVERRIDES, 1)
+    evaluate_tasks([spec], tmp_path / "one", progress=False)
+    evaluate_tasks([EvalSpec(**{**spec.__dict__, "workers": 2})], tmp_path / "two", progress=False)
+    assert records(tmp_path / "two" / "stage5.jsonl") == records(tmp_path / "one" / "stage5.jsonl")
+    assert summary(tmp_path / "two" / "summary.csv") == summary(tmp_path / "one" / "summary.csv")
+
+
+def test_closing_the_stream_early_ends_the_workers():
+    """A consumer that stops early (an error writing the JSONL, Ctrl-C) ends the evaluation: the
+    pending chunks are dropped, the running ones end and no worker process is left."""
+    stream = _results(EvalSpec("stage5", "mpc_goal", 40, 0, OVERRIDES, 2), range(40))
+    first = next(stream)
+    stream.close()
+    assert first["index"] in range(40)
+    assert multiprocessing.active_children() == []
 
 
 def test_bad_task_is_one_error_line(capsys):
