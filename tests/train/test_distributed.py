@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -70,16 +71,37 @@ def _record_updates() -> None:
     session.build_runner = build_and_record
 
 
-def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1) -> subprocess.CompletedProcess[str]:
-    """Train this file's ``__main__`` under ``torchrun --standalone`` with ``ranks`` CPU processes
-    (the last rank asks to stop before update ``stop_at``)."""
+def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1,
+              nodes: int = 1) -> subprocess.CompletedProcess[str]:
+    """Train this file's ``__main__`` under torchrun with ``ranks`` CPU processes (the last rank asks
+    to stop before update ``stop_at``): ``torchrun --standalone``, or with ``nodes`` > 1 that many
+    torchrun agents of ``ranks`` processes each, meeting by c10d rendezvous on loopback as the nodes
+    of a cluster do; returns the first agent's process (the others must succeed too)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MJNAV_TEST_DIGESTS": str(digests), "OMP_NUM_THREADS": "1",
            "MJNAV_TEST_STOP_AT": str(stop_at)}
-    command = [sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc_per_node={ranks}",
-               __file__, *args]
-    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    return done
+    launch = ["--standalone"]
+    if nodes > 1:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        launch = [f"--nnodes={nodes}", "--rdzv_backend=c10d", f"--rdzv_endpoint=127.0.0.1:{port}",
+                  f"--rdzv_id=test-{port}"]
+    command = [sys.executable, "-m", "torch.distributed.run", *launch, f"--nproc_per_node={ranks}", __file__, *args]
+    logs = [(digests / f"node{k}.out", digests / f"node{k}.err") for k in range(nodes)]  # no pipe fills up
+    agents = []
+    try:
+        for out, err in logs:
+            with out.open("w") as o, err.open("w") as e:
+                agents.append(subprocess.Popen(command, env=env, stdout=o, stderr=e, text=True, cwd=ROOT))
+        for agent in agents:
+            agent.wait(timeout=300)
+    finally:
+        for agent in agents:
+            agent.kill()
+    outputs = [(out.read_text(), err.read_text()) for out, err in logs]
+    for agent, (out, err) in zip(agents, outputs):
+        assert agent.returncode == 0, out[-3000:] + err[-3000:]
+    return subprocess.CompletedProcess(command, 0, *outputs[0])
 
 
 def _lines(digests: Path, rank: int) -> list[list[str]]:
@@ -135,6 +157,19 @@ def test_resume_loads_the_checkpoint_on_every_rank_and_a_stop_on_one_rank_stops_
     assert [r[0] for r in rank0] == ["2", "3"] and [r[:2] for r in rank0] == [r[:2] for r in rank1]
     assert (run_dir / "model_3.pt").is_file() and "torch.distributed.run" in done.stdout.split("continue with:")[1]
     assert yaml.safe_load((run_dir / "config.yaml").read_text())["run"]["ranks"] == [2, 2]
+
+
+def test_two_nodes_meet_by_rendezvous_and_train_as_one(tmp_path):
+    """The README's multi-node launch on loopback: two torchrun agents of one process each (c10d
+    rendezvous) hold identical parameters after every update and write one run folder."""
+    out, digests = tmp_path / "runs", tmp_path / "digests"
+    digests.mkdir()
+    _torchrun([*TINY, "train.iterations=2", f"out={out}"], digests, ranks=1, nodes=2)
+    rank0, rank1 = _lines(digests, 0), _lines(digests, 1)
+    assert [r[0] for r in rank0] == ["0", "1"] and [r[:2] for r in rank0] == [r[:2] for r in rank1]
+    assert all(a[2] != b[2] for a, b in zip(rank0, rank1))
+    (run_dir,) = out.iterdir()
+    assert yaml.safe_load((run_dir / "config.yaml").read_text())["run"]["ranks"] == [2]
 
 
 def test_rank_seeds_devices_and_backends():
