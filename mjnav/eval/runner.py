@@ -494,10 +494,10 @@ def _local_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str,
 
     A :class:`concurrent.futures.ProcessPoolExecutor` with one chunk per worker in flight, shut down
     and never killed. ``multiprocessing.Pool`` ended an evaluation with ``terminate()``, which hung
-    for good about once in ten failed worker setups: it killed a worker that was sending a result,
-    and its task-handler thread then waited on the lock the dead worker held. On an error or an
-    early close the pending chunks are dropped and the running ones (at most 8 episodes each) end
-    first; Ctrl-C reaches the workers too and stops them at once.
+    for good in 2 of 40 repeats of a failed worker setup: it kills workers that may be sending a
+    result, and its task-handler thread can then wait forever on a lock a dead worker held. On an
+    error or an early close the pending chunks are dropped and the running ones (at most 8 episodes
+    each) end first; Ctrl-C reaches the workers too and stops them at once.
     """
     if spec.workers <= 1:
         _init_worker(spec)
@@ -823,9 +823,9 @@ def _atomic_write(path: Path, text: str) -> None:
 def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:
     """First 16 hex digits of the SHA-256 of what a policy spec acts with.
 
-    A policy file or shipped policy name: the file's bytes. A baseline with parameters (``teb``, ``dwa``): its resolved parameters
-    (defaults plus ``planner`` overrides), so records made before a default changed no longer match.
-    None for other baselines and run names.
+    A policy file or shipped policy name: the file's bytes. A baseline with parameters (``teb``,
+    ``dwa``): its resolved parameters (defaults plus ``planner`` overrides), so records made before
+    a default changed no longer match. None for other baselines and run names.
     """
     # deferred: ~0.2 s (planners: MPC, numba, scipy, osqp), not needed by `mjnav evaluate --help`/`tables --help`
     from mjnav.planners import PLANNERS, planner_config
