@@ -39,6 +39,7 @@ __all__ = [
     "Parsed",
     "attribute_docs",
     "closest",
+    "config_key",
     "describe_fields",
     "parse",
     "task_overrides",
@@ -150,6 +151,13 @@ def _config_key(key: str, grammar: Grammar) -> tuple[str, str] | None:
     if head in grammar.task_sections and "task" in grammar.prefixes:
         return "task", key
     return None
+
+
+def config_key(key: str, grammar: Grammar) -> str:
+    """``key`` in its long form (``crowd.count`` → ``task.crowd.count``); as it is when ``grammar``
+    takes no such config key."""
+    found = _config_key(key, grammar)
+    return key if found is None else f"{found[0]}.{found[1]}"
 
 
 def parse(argv: Iterable[str], grammar: Grammar) -> Parsed:

@@ -22,6 +22,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from mjnav.args import HELP_FLAGS, PREFIXES, Grammar, Parsed, closest, describe_fields, parse
+from mjnav.registry import RegistryError
 from mjnav.schema import ConfigError
 
 __all__ = ["VERBS", "Verb", "evaluate", "export", "help_text", "main", "render", "run_script", "run_verb",
@@ -143,7 +144,10 @@ def run_verb(verb: Verb, argv: Sequence[str], prog: str = "mjnav") -> int:
         parsed = parse(argv, grammar)
     except ConfigError as err:
         return _error(err)
-    return _load(verb.run)(parsed, argv)
+    try:
+        return _load(verb.run)(parsed, argv)
+    except RegistryError as err:  # an unknown stage, planner, design, ... named anywhere in the command
+        return _error(err)
 
 
 def run_script(argv: Sequence[str], script: str, summary: str, options: type, body: Callable[[Parsed], int],

@@ -8,9 +8,12 @@ comma), and ``seeds=`` is the last axis (``train.seed``). Every other ``task.*``
 given to every run. A cell is one combination: ``mjnav train`` in ``<out>/<cell>/`` (its run folder
 inside, ``train.log`` beside it), then ``mjnav evaluate policy=<run folder> episodes=N`` into
 ``<out>/<cell>/eval/`` (the run's own task overrides, so the evaluation is of what was trained),
-then ``<out>/<cell>/result.json``. A cell with a ``result.json`` is done and skipped when the sweep is
-started again (resume after a kill, or widen the grid in the same ``out``); a failed cell writes
-``failed.json`` with its log, the rest go on, and the sweep exits with 1.
+then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen the grid in the same
+``out``), the sweep skips a cell whose ``result.json`` has the same arguments, evaluates without
+training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
+for more episodes) and refuses, before running anything, a folder whose run was trained with other
+arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
+with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call.
 
 Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
 tasks (``backend=ray``, ``address=`` for a running cluster; ``out`` must then be on a file system
@@ -35,12 +38,13 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from mjnav.args import ArgsError, Grammar, Parsed
+from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
 from mjnav.jobs import joined_ray, usable_cores
 from mjnav.schema import ConfigError
 
-__all__ = ["HEADLINE", "Cell", "SweepOptions", "cells", "grammar", "run", "run_cell", "table"]
+__all__ = ["HEADLINE", "Cell", "SweepOptions", "arguments", "cells", "check_recorded", "grammar", "run", "run_cell",
+           "table"]
 
 #: The summary columns the table shows: (key, label, percent?).
 HEADLINE: tuple[tuple[str, str, bool], ...] = (
@@ -110,8 +114,15 @@ def grammar() -> Grammar:
     return Grammar(SweepOptions, ("task", "train"), {}, TASK_SECTIONS)
 
 
-def _axes(argv: Sequence[str]) -> list[tuple[str, list[str]]]:
-    """``[(KEY, [values])]`` of every ``grid=KEY=V1,V2`` token (the grammar keeps only the last one)."""
+def _axes(argv: Sequence[str], fixed: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """``[(KEY, [values])]`` of every ``grid=KEY=V1,V2`` token (the grammar keeps only the last one),
+    each key in its long form (``task.crowd.count``).
+
+    Raises:
+        ArgsError: A malformed axis, a key given twice (in either form) or also among the overrides
+            ``fixed`` given to every run, or a value listed twice (one run would count twice).
+    """
+    g = grammar()
     axes = []
     for token in argv:
         key, _, axis = token.partition("=")
@@ -121,9 +132,14 @@ def _axes(argv: Sequence[str]) -> list[tuple[str, list[str]]]:
         listed = [v.strip() for v in values.split(",") if v.strip()]
         if not sep or not name.strip() or not listed:
             raise ArgsError(f"grid: expected KEY=V1,V2,... (grid=task.design=design1,design2), got {axis!r}")
-        axes.append((name.strip(), listed))
+        if len(set(listed)) < len(listed):
+            raise ArgsError(f"grid: {name.strip()} lists a value twice ({values.strip()})")
+        axes.append((config_key(name.strip(), g), listed))
     if len({k for k, _ in axes}) < len(axes):
-        raise ArgsError("grid: an override key is given twice")
+        raise ArgsError("grid: an override key is given twice (crowd.count and task.crowd.count are one key)")
+    both = {k for k, _ in axes} & {o.split("=", 1)[0] for o in fixed}
+    if both:
+        raise ArgsError(f"grid: {', '.join(sorted(both))} is also given to every run; give it once")
     return axes
 
 
@@ -150,8 +166,12 @@ def cells(parsed: Parsed, argv: Sequence[str]) -> list[Cell]:
         raise ArgsError(f"seeds: expected comma-separated integers, got {opts.seeds!r}") from None
     if not seeds or opts.episodes < 1 or opts.cpus_per_run < 1:
         raise ArgsError("seeds: at least one; episodes and cpus_per_run: >= 1")
-    axes, out = _axes(argv), Path(opts.out or Path("sweeps") / Path(opts.task).stem)
+    if len(set(seeds)) < len(seeds):
+        raise ArgsError(f"seeds: a seed is listed twice ({opts.seeds}): one run would count twice")
+    if opts.workers is not None and opts.workers < 0:
+        raise ArgsError(f"workers: must be >= 0, got {opts.workers}")
     fixed = [*(f"task.{o}" for o in parsed.task), *(f"train.{o}" for o in parsed.train)]
+    axes, out = _axes(argv, fixed), Path(opts.out or Path("sweeps") / Path(opts.task).stem)
     workers = usable_cores() if opts.workers is None else opts.workers
     if opts.backend == "ray":  # a cell uses the CPUs its task reserves, no more (see _reserved)
         fixed += _reserved(parsed.train, opts.cpus_per_run)
@@ -210,33 +230,78 @@ def _summary(path: Path) -> dict[str, Any]:
     return out
 
 
-def run_cell(cell: Cell) -> dict[str, Any]:
-    """Train and evaluate one cell (skipped when its ``result.json`` exists); returns its result.
+def arguments(cell: Cell) -> dict[str, list[str]]:
+    """What a cell's results depend on: its ``train`` and ``evaluate`` arguments (``workers=`` left
+    out: any worker count gives the same episodes)."""
+    return {"train": list(cell.train), "evaluate": [a for a in cell.evaluate if not a.startswith("workers=")]}
 
-    The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``run`` (run folder),
-    ``summary`` (the evaluation's summary row), or ``failed`` (which step) and ``log``; ``skipped``
-    (True) when it was read from an earlier ``result.json``. NaN is written to ``result.json`` as null.
+
+def _recorded(cell: Cell) -> dict[str, Any]:
+    """What an earlier call left in the cell: its ``result.json``, else its ``trained.json``, else {}."""
+    for name in ("result.json", "trained.json"):
+        path = cell.folder / name
+        if path.is_file():
+            return {**json.loads(path.read_text(encoding="utf-8")), "file": name}
+    return {}
+
+
+def check_recorded(todo: Sequence[Cell]) -> None:
+    """Refuse to run when a cell's folder holds a run trained with other arguments.
+
+    A cell is found again by its folder name (grid point and seed), which does not show the
+    overrides given to every run; reusing its run would report it under the new arguments.
+
+    Raises:
+        ConfigError: Naming the first such cells and the arguments that differ.
     """
-    done = cell.folder / "result.json"
-    if done.is_file():
-        result = json.loads(done.read_text(encoding="utf-8"))
-        if "summary" in result:  # null back to NaN, as _summary reads an empty cell
-            result["summary"] = {k: math.nan if v is None else v for k, v in result["summary"].items()}
-        return {**result, "skipped": True}
+    stale = []
+    for cell in todo:
+        recorded = _recorded(cell)
+        if "train" in recorded and recorded["train"] != list(cell.train):
+            before, now = set(recorded["train"]), set(cell.train)
+            stale.append(f"{cell.folder} (its {recorded['file']}: {', '.join(sorted(before - now)) or '-'}; "
+                         f"now: {', '.join(sorted(now - before)) or '-'})")
+    if stale:
+        raise ConfigError(f"{len(stale)} cell(s) hold a run trained with other arguments, e.g. {stale[0]}; "
+                          "give another out= or move those folders away")
+
+
+def run_cell(cell: Cell) -> dict[str, Any]:
+    """Train and evaluate one cell; returns its result.
+
+    A cell whose ``result.json`` has its arguments (:func:`arguments`) is done and skipped. A run
+    trained by an earlier call (``trained.json``, or a ``result.json`` of other evaluation
+    arguments, such as more episodes) is evaluated, not trained again; the evaluation picks up the
+    episodes already in ``eval/``. Call :func:`check_recorded` first.
+
+    The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``train`` and
+    ``evaluate`` (:func:`arguments`), ``run`` (run folder), ``summary`` (the evaluation's summary
+    row), or ``failed`` (which step) and ``log``; ``skipped`` (True) when it was read from an
+    earlier ``result.json``, ``unchecked`` (True) when that file predates the recorded arguments.
+    NaN is written to ``result.json`` as null.
+    """
+    given, recorded = arguments(cell), _recorded(cell)
+    head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **given}
+    if recorded.get("file") == "result.json" and recorded.get("evaluate", given["evaluate"]) == given["evaluate"]:
+        if "summary" in recorded:  # null back to NaN, as _summary reads an empty cell
+            recorded["summary"] = {k: math.nan if v is None else v for k, v in recorded["summary"].items()}
+        unchecked = {"unchecked": True} if "train" not in recorded else {}
+        return {**recorded, "point": head["point"], "skipped": True, **unchecked}
     cell.folder.mkdir(parents=True, exist_ok=True)
     (cell.folder / "failed.json").unlink(missing_ok=True)
-    head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed}
-    log = cell.folder / "train.log"
-    run_dir = None
-    if _mjnav(["train", *cell.train, f"out={cell.folder}"], log) == 0:
-        run_dir = _run_folder(cell.folder)
-    if run_dir is None:
-        return _failed(cell, head, "train", log)
+    run_dir = cell.folder / Path(recorded["run"]).name if "run" in recorded else None  # the sweep may have moved
+    if run_dir is None or not (run_dir / "policy.pt").is_file():
+        log = cell.folder / "train.log"
+        run_dir = _run_folder(cell.folder) if _mjnav(["train", *cell.train, f"out={cell.folder}"], log) == 0 else None
+        if run_dir is None:
+            return _failed(cell, head, "train", log)
+        trained = {"train": given["train"], "run": str(run_dir)}
+        (cell.folder / "trained.json").write_text(json.dumps(trained, indent=1) + "\n", encoding="utf-8")
     log = cell.folder / "eval.log"
     if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
         return _failed(cell, head, "evaluate", log)
     result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
-    done.write_text(json.dumps(_no_nan(result), indent=1) + "\n", encoding="utf-8")
+    (cell.folder / "result.json").write_text(json.dumps(_no_nan(result), indent=1) + "\n", encoding="utf-8")
     return result
 
 
@@ -331,11 +396,14 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         if opts.address is not None and opts.backend != "ray":
             raise ConfigError("address: a Ray cluster address; needs backend=ray")
         todo = cells(parsed, argv)
+        check_recorded(todo)
         keys = [k for k, _ in todo[0].point]
         out = todo[0].folder.parent
         results = []
         for result in BACKENDS[opts.backend](todo, opts):
             state = "done before (its result.json)" if result.pop("skipped", False) else "done"
+            if result.pop("unchecked", False):
+                state += ", recorded without its arguments: not checked"
             state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else state
             print(f"sweep: {result['cell']}: {state}", file=sys.stderr, flush=True)
             results.append(result)

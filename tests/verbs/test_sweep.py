@@ -54,9 +54,15 @@ def test_a_ray_cell_uses_only_the_cpus_it_reserves(tmp_path: Path) -> None:
     ("seeds=a,b", "seeds: expected comma-separated integers"),
     ("backend=slurm", "backend: expected one of local, ray"),
     ("address=auto", "address: a Ray cluster address; needs backend=ray"),
+    ("seeds=0,0", "seeds: a seed is listed twice"),
+    ("grid=crowd.count=3,3", "crowd.count lists a value twice"),
+    ("grid=crowd.count=3 grid=task.crowd.count=4", "an override key is given twice"),
+    ("grid=crowd.count=3,4 task.crowd.count=5", "task.crowd.count is also given to every run"),
+    ("workers=-1", "workers: must be >= 0"),
+    ("task=nonexist", "unknown stage 'nonexist'"),
 ])
 def test_a_bad_grid_is_one_error_line_and_runs_nothing(tmp_path, capsys, token, message) -> None:
-    assert main(["sweep", "task=stage1", token, f"out={tmp_path / 's'}"]) == 2
+    assert main(["sweep", "task=stage1", *token.split(), f"out={tmp_path / 's'}"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and message in err
     assert not (tmp_path / "s").exists()
@@ -77,7 +83,7 @@ def _fake_mjnav(calls: list[list[str]], fail: str | None = None):
             (run / "seed").write_text(values["seed"])
         else:
             seed = int((Path(values["policy"]) / "seed").read_text())
-            (Path(values["out"])).mkdir(parents=True)
+            (Path(values["out"])).mkdir(parents=True, exist_ok=True)
             (Path(values["out"]) / "summary.csv").write_text(
                 f"task,policy,success_rate,collision_rate,timeout_rate,time_s,distance_m\n"
                 f"stage1,x,{seed / 10},0.1,{0.9 - seed / 10},,5.0\n")
@@ -125,6 +131,48 @@ def test_a_failed_cell_is_recorded_and_the_others_go_on(tmp_path, monkeypatch, c
     monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
     assert main(["sweep", "task=stage1", "seeds=1,2,3", f"out={tmp_path}"]) == 0
     assert [c[0] for c in calls] == ["train", "evaluate"] and not (tmp_path / "seed-2" / "failed.json").exists()
+
+
+def test_a_short_grid_key_is_its_long_form(tmp_path: Path) -> None:
+    short, long = (_cells(["task=stage1", f"grid={k}=3,4", "seeds=0", f"out={tmp_path}"]) for k in
+                   ("crowd.count", "task.crowd.count"))
+    assert short == long and short[0].point == (("task.crowd.count", "3"),)
+
+
+def test_a_cell_trained_with_other_arguments_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys) -> None:
+    """The folder name (grid point and seed) does not show the overrides given to every run."""
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1,2", f"out={tmp_path}"]
+    assert main([*argv, "train.iterations=1"]) == 0
+    calls.clear()
+    assert main([*argv, "train.iterations=3"]) == 2 and calls == []
+    err = capsys.readouterr().err
+    assert "2 cell(s) hold a run trained with other arguments" in err
+    assert "its result.json: train.iterations=1; now: train.iterations=3" in err
+    assert json.loads((tmp_path / "seed-1" / "result.json").read_text())["train"][-2] == "train.iterations=1"
+
+
+def test_a_cell_killed_while_evaluating_is_evaluated_not_trained_again(tmp_path, monkeypatch, capsys) -> None:
+    """An earlier call's run is evaluated again (more episodes, or its evaluation cut short); a
+    ``result.json`` from before the arguments were recorded is used as it is, and said so."""
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1,2", f"out={tmp_path}"]
+    assert main(argv) == 0
+    runs = sorted(tmp_path.glob("seed-*/stage1-*"))
+    (tmp_path / "seed-1" / "result.json").unlink()  # killed while evaluating
+    calls.clear()
+    assert main(argv) == 0 and [c[0] for c in calls] == ["evaluate"]
+    assert calls[0][1] == f"policy={runs[0]}"
+    calls.clear()
+    assert main([*argv, "episodes=300"]) == 0 and [c[0] for c in calls] == ["evaluate", "evaluate"]
+    assert sorted(tmp_path.glob("seed-*/stage1-*")) == runs  # nothing trained again
+    old = json.loads((tmp_path / "seed-2" / "result.json").read_text())
+    del old["train"], old["evaluate"]
+    (tmp_path / "seed-2" / "result.json").write_text(json.dumps(old))
+    calls.clear()
+    capsys.readouterr()
+    assert main([*argv, "episodes=300"]) == 0 and calls == []
+    assert "seed-2: done before (its result.json), recorded without its arguments: not checked" in capsys.readouterr().err
 
 
 def test_a_real_tiny_sweep_trains_evaluates_and_resumes(tmp_path, capsys) -> None:
