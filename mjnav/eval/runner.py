@@ -34,10 +34,12 @@ import itertools
 import json
 import math
 import multiprocessing as mp
+import multiprocessing.connection
 import os
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
@@ -505,7 +507,7 @@ def _local_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str,
         return
     _check_policy(spec)
     chunks = iter(_chunks(indices, spec.workers, most=8))
-    pool = ProcessPoolExecutor(spec.workers, mp_context=mp.get_context("spawn"))
+    pool = ProcessPoolExecutor(spec.workers, mp_context=mp.get_context("spawn"), initializer=_end_with_parent)
     try:
         running = {pool.submit(_run_chunk, spec, chunk) for chunk in itertools.islice(chunks, spec.workers)}
         while running:
@@ -515,6 +517,21 @@ def _local_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str,
                 yield from future.result()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _end_with_parent() -> None:
+    """Exit this worker process when its parent ends, however it ends.
+
+    A parent killed by SIGTERM or SIGKILL (``timeout``, a batch system's time limit) runs no cleanup;
+    its workers would wait for work forever, holding their memory.
+    """
+    sentinel = mp.parent_process().sentinel
+
+    def watch() -> None:
+        mp.connection.wait([sentinel])
+        os._exit(1)
+
+    threading.Thread(target=watch, name="end-with-parent", daemon=True).start()
 
 
 def _run_chunk(spec: EvalSpec, indices: Sequence[int]) -> list[dict[str, Any]]:

@@ -5,6 +5,12 @@ from __future__ import annotations
 import csv
 import json
 import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -141,6 +147,46 @@ def test_closing_the_stream_early_ends_the_workers():
     stream.close()
     assert first["index"] in range(40)
     assert multiprocessing.active_children() == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads child processes from /proc")
+def test_workers_end_when_the_evaluation_is_killed(tmp_path):
+    """SIGKILL (a batch system's time limit) runs no cleanup in the parent; its workers exit by themselves."""
+    script = ("import sys; from mjnav.eval.runner import EvalSpec, evaluate; "
+              f"evaluate(EvalSpec('stage5', 'mpc_goal', 400, 0, {OVERRIDES!r}, 2), sys.argv[1], progress=False)")
+    parent = subprocess.Popen([sys.executable, "-c", script, str(tmp_path)], cwd=Path(__file__).parents[2])
+    try:
+        jsonl = tmp_path / "stage5.jsonl"
+        deadline = time.monotonic() + 120
+        while not (jsonl.is_file() and jsonl.stat().st_size) and time.monotonic() < deadline:  # workers busy
+            time.sleep(0.2)
+        workers = _children(parent.pid)
+        assert len(workers) >= 2 and parent.poll() is None
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 20
+    while _alive(workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = _alive(workers)
+    for pid in left:  # not to leave them running if this fails
+        os.kill(pid, signal.SIGKILL)
+    assert left == []
+
+
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (its workers and multiprocessing's resource tracker)."""
+    return [int(c) for t in Path(f"/proc/{pid}/task").iterdir() for c in (t / "children").read_text().split()]
+
+
+def _alive(pids: list[int]) -> list[int]:
+    """Those of ``pids`` still running (not gone, not zombies)."""
+    def state(pid: int) -> str:
+        try:
+            return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except FileNotFoundError:
+            return "gone"
+    return [pid for pid in pids if state(pid) not in ("gone", "Z")]
 
 
 def test_bad_task_is_one_error_line(capsys):
