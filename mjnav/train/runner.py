@@ -84,7 +84,17 @@ class TrainingInterrupted(Exception):
         self.iteration = iteration
 
 
-_STOP = {"requested": False}
+#: ``requested``: this process was asked to stop (a signal, :func:`request_stop`). ``agreed``: under
+#: torchrun, whether any rank had asked at the last update's all-reduce (:func:`_agree_on_stops`);
+#: None otherwise. A request that arrives after the all-reduce waits for the next one, so no rank
+#: stops alone and leaves the others blocked in their next all-reduce.
+_STOP: dict[str, bool | None] = {"requested": False, "agreed": None}
+
+
+def _stop_now() -> bool:
+    """Whether to stop after this iteration: the ranks' agreed flag under torchrun, else the request."""
+    agreed = _STOP["agreed"]
+    return bool(_STOP["requested"]) if agreed is None else agreed
 
 
 @dataclasses.dataclass(frozen=True)
@@ -280,22 +290,23 @@ def _warm_up_critic(runner: OnPolicyRunner, iterations: int) -> None:
 def _agree_on_stops(runner: OnPolicyRunner, ranks: distributed.Ranks) -> None:
     """Make every rank stop after the same iteration when any rank was asked to stop.
 
-    After each update the ranks share their stop flags (one all-reduce); rank 0's
-    :class:`ProgressWriter` then raises :class:`TrainingInterrupted` after logging, and the other
-    ranks, which log nothing, raise it from the logger's ``log``. Wraps both on the instance.
+    After each update the ranks share their stop flags (one all-reduce, ``_STOP["agreed"]``); rank
+    0's :class:`ProgressWriter` then raises :class:`TrainingInterrupted` after logging, and the other
+    ranks, which log nothing, raise it from the logger's ``log``. Both read the agreed flag, not the
+    rank's own request, which a signal may set after the all-reduce. Wraps both on the instance.
     """
     update, log = runner.alg.update, runner.logger.log
 
     @functools.wraps(update)
     def update_then_agree(*args: Any, **kwargs: Any) -> Any:
         result = update(*args, **kwargs)
-        _STOP["requested"] = distributed.any_rank(_STOP["requested"], runner.device)
+        _STOP["agreed"] = distributed.any_rank(bool(_STOP["requested"]), runner.device)
         return result
 
     @functools.wraps(log)
     def log_then_stop(*args: Any, it: int, **kwargs: Any) -> None:
         log(*args, it=it, **kwargs)
-        if _STOP["requested"]:
+        if _stop_now():
             raise TrainingInterrupted(it)
 
     runner.alg.update = update_then_agree
@@ -456,13 +467,13 @@ def handle_interrupts() -> Iterator[None]:
         )
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    _STOP["requested"] = False
+    _STOP.update(requested=False, agreed=None)
     try:
         yield
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        _STOP["requested"] = False
+        _STOP.update(requested=False, agreed=None)
 
 
 def request_stop() -> None:
@@ -499,7 +510,7 @@ class ProgressWriter(LogWriter):
         if tag == "Perf/learning_time":
             print(self.line(global_step), flush=True)
             self.values = {}
-            if _STOP["requested"]:
+            if _stop_now():
                 raise TrainingInterrupted(global_step)
 
     def line(self, it: int) -> str:

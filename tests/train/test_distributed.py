@@ -197,3 +197,23 @@ if __name__ == "__main__":
 
     _record_updates()
     sys.exit(main(["train", *sys.argv[1:]]))
+
+
+def test_a_stop_asked_after_the_ranks_agreed_waits_for_their_next_update(monkeypatch):
+    """A signal between the all-reduce of the stop flags and the log must not stop one rank alone
+    (the others would wait for it in their next all-reduce): it is shared at the next update."""
+    from types import SimpleNamespace
+
+    from mjnav.train.runner import TrainingInterrupted, _agree_on_stops, handle_interrupts, request_stop
+
+    monkeypatch.setattr(distributed, "any_rank", lambda flag, device: flag)  # this rank's flag decides
+    runner = SimpleNamespace(alg=SimpleNamespace(update=lambda: None), device="cpu",
+                             logger=SimpleNamespace(log=lambda *a, it, **k: None))
+    with handle_interrupts():
+        _agree_on_stops(runner, distributed.Ranks(rank=1, local_rank=1, world_size=2, local_world_size=2))
+        runner.alg.update()
+        request_stop()  # after the all-reduce
+        runner.logger.log(it=0)  # goes on, as the other rank does
+        runner.alg.update()
+        with pytest.raises(TrainingInterrupted):
+            runner.logger.log(it=1)
