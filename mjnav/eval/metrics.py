@@ -270,6 +270,8 @@ def summary_row(summary: Mapping[str, float], task: str, policy: str) -> dict[st
 
 
 def _cell(value: Any, fmt: str) -> str:
+    if isinstance(value, str) and fmt != "{}":  # a number as summary.csv holds it ("" for none)
+        value = float(value) if value else None
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return "–"
     if fmt == "pct":

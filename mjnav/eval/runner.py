@@ -28,6 +28,7 @@ processes, with the same records, episode for episode.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import hashlib
 import itertools
@@ -917,11 +918,28 @@ def evaluate_tasks(
 
 
 def write_summaries(rows: Sequence[dict[str, Any]], out_dir: str | Path, suffix: str = "") -> None:
-    """``summary<suffix>.csv`` and ``summary<suffix>.md`` (one row per task) in ``out_dir``."""
+    """``summary<suffix>.csv`` and ``summary<suffix>.md`` (one row per task) in ``out_dir``.
+
+    ``rows`` take the place of the rows of their tasks; the rows of other tasks already there are
+    kept as they are (an evaluation of stage 5 into the folder of one of stage 3 keeps stage 3's row).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(rows, out / f"summary{suffix}.csv")
+    path = out / f"summary{suffix}.csv"
+    rows = _with_earlier_rows(rows, path)
+    write_csv(rows, path)
     (out / f"summary{suffix}.md").write_text(format_markdown(rows), encoding="utf-8")
+
+
+def _with_earlier_rows(rows: Sequence[dict[str, Any]], path: Path) -> list[dict[str, Any]]:
+    """The rows of summary file ``path`` (as text) with those of the tasks of ``rows`` replaced in
+    place, then the rows of new tasks."""
+    if not path.is_file():
+        return list(rows)
+    with open(path, newline="", encoding="utf-8") as f:
+        earlier = list(csv.DictReader(f))
+    new = {row["task"]: row for row in rows}
+    return [*(new.pop(row.get("task"), row) for row in earlier), *new.values()]
 
 
 # ---------------------------------------------------------------------------- command line

@@ -303,3 +303,17 @@ def test_contact_run_settles_the_paper_rule_exactly(tmp_path, policy):
     assert [r["outcome"] for r in final] == [direct[i]["outcome"] for i in range(8)]
     other = EvalSpec("stage2", policy, 8, 0, ("timing.episode_steps=100", "collision=scan"), 1)
     assert runner.seed_paper_rule(tmp_path / "contact" / "stage2.jsonl", other, tmp_path / "other") == 0
+
+
+def test_a_later_task_in_the_same_folder_keeps_the_earlier_rows(tmp_path):
+    """The summary gets a row per task evaluated into the folder; re-evaluating a task replaces its row."""
+    stage5 = EvalSpec("stage5", "mpc_goal", 1, 0, OVERRIDES, 1)
+    evaluate_tasks([stage5], tmp_path, progress=False)
+    first = (tmp_path / "summary.csv").read_text().splitlines()
+    evaluate_tasks([EvalSpec("stage2", "mpc_goal", 1, 0, OVERRIDES, 1)], tmp_path, progress=False)
+    evaluate_tasks([EvalSpec(**{**stage5.__dict__, "episodes": 2})], tmp_path, progress=False)
+    rows = list(csv.DictReader((tmp_path / "summary.csv").open()))
+    assert [(r["task"], float(r["episodes"])) for r in rows] == [("stage5", 2), ("stage2", 1)]
+    assert first[1].startswith("stage5,mpc_goal,")
+    table = (tmp_path / "summary.md").read_text().splitlines()
+    assert [line.split(" | ")[0] for line in table[2:]] == ["| stage5", "| stage2"]
