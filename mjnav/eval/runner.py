@@ -60,7 +60,7 @@ from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
 from mjnav.jobs import joined_ray, usable_cores
 from mjnav import shipped
-from mjnav.schema import ConfigError
+from mjnav.schema import ConfigError, to_dict
 
 __all__ = [
     "BACKENDS",
@@ -83,10 +83,12 @@ __all__ = [
     "seed_paper_rule",
     "settle_from_contact",
     "summarise",
+    "task_sha256",
     "write_summaries",
 ]
 
 if TYPE_CHECKING:
+    from mjnav.config import TaskConfig
     from mjnav.envs.gym_env import NavGymEnv
     from mjnav.eval.policies import Agent
     from mjnav.sim import NavSim
@@ -665,7 +667,8 @@ def _common(spec: EvalSpec) -> dict[str, Any]:
     from mjnav.policy import policy_name
 
     config = resolve_config(spec.task, spec.task_overrides or None)
-    return {"task": config.name, "task_version": config.version, "policy": policy_name(spec.policy),
+    return {"task": config.name, "task_version": config.version, "task_sha256": task_sha256(config),
+            "policy": policy_name(spec.policy),
             "policy_source": spec.policy, "policy_sha256": policy_sha256(spec.policy, spec.planner),
             "commit": git_commit(), "overrides": spec.task_overrides,
             "policy_overrides": list(spec.policy_overrides), "collision": config.collision,
@@ -695,12 +698,16 @@ def seed_paper_rule(contact_jsonl: str | Path, spec: EvalSpec, out_dir: str | Pa
     if common["collision"] != "scan":
         raise ValueError(f"seed_paper_rule: spec must use collision=scan, got {common['collision']!r}")
     rest = [o for o in common["overrides"] if not o.startswith("collision=")]
+    # deferred: mjnav.envs ~0.5 s after mjnav.config (MuJoCo, dm_control), not needed by `mjnav evaluate --help`
+    from mjnav.envs.factory import resolve_config
+
+    contact = {**common, "task_sha256": task_sha256(resolve_config(spec.task, [*rest, "collision=contact"]))}
     derived = []
     for record in read_jsonl(contact_jsonl):
         index, paper = record.get("index"), record.get("paper_rule")
         same = (record.get("collision") == "contact" and isinstance(index, int)
                 and [o for o in record.get("overrides", []) if not o.startswith("collision=")] == rest
-                and all(record.get(k) == common[k] for k in _SPEC_KEYS if k != "overrides"))
+                and all(record.get(k) == contact[k] for k in _SPEC_KEYS if k != "overrides"))
         if not same:
             return 0
         if (paper is not None and index < spec.episodes and spec.in_shard(index)
@@ -758,12 +765,12 @@ def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
 
 
 #: Fields every record of one evaluation shares (the rest is the episode's, from :func:`_work`).
-_COMMON_KEYS = ("task", "task_version", "policy", "policy_source", "policy_sha256", "commit", "overrides",
-                "policy_overrides", "collision", "design", "action_mode", "planner_overrides", "planner_source",
-                "planner_sha256", "planner_params", "planner_privileged")
+_COMMON_KEYS = ("task", "task_version", "task_sha256", "policy", "policy_source", "policy_sha256", "commit",
+                "overrides", "policy_overrides", "collision", "design", "action_mode", "planner_overrides",
+                "planner_source", "planner_sha256", "planner_params", "planner_privileged")
 #: Fields that must match for an interrupted evaluation to be continued rather than started over.
-_SPEC_KEYS = ("task", "task_version", "policy_source", "policy_sha256", "commit", "overrides", "action_mode",
-              "planner_overrides", "planner_source", "planner_sha256", "planner_params")
+_SPEC_KEYS = ("task", "task_version", "task_sha256", "policy_source", "policy_sha256", "commit", "overrides",
+              "action_mode", "planner_overrides", "planner_source", "planner_sha256", "planner_params")
 
 
 def _append(path: Path, common: dict[str, Any], stream: Iterator[dict[str, Any]]) -> Iterator[dict[str, Any]]:
@@ -836,6 +843,16 @@ def _atomic_write(path: Path, text: str) -> None:
         os.fsync(folder)
     finally:
         os.close(folder)
+
+
+def task_sha256(config: TaskConfig) -> str:
+    """First 16 hex digits of the SHA-256 of a resolved task config (its overrides applied).
+
+    The task's name is its file's stem: two YAML files ``a/stage5.yaml`` and ``b/stage5.yaml`` are
+    both ``stage5``, and only this tells their records apart.
+    """
+    text = json.dumps(to_dict(config), sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def policy_sha256(spec: str, planner: Sequence[str] = ()) -> str | None:

@@ -317,3 +317,13 @@ def test_a_later_task_in_the_same_folder_keeps_the_earlier_rows(tmp_path):
     assert first[1].startswith("stage5,mpc_goal,")
     table = (tmp_path / "summary.md").read_text().splitlines()
     assert [line.split(" | ")[0] for line in table[2:]] == ["| stage5", "| stage2"]
+
+
+def test_two_task_files_of_one_name_are_two_evaluations(tmp_path):
+    """A task is named by its file's stem; its resolved config's hash tells two ``stage5.yaml`` apart."""
+    other = tmp_path / "mine" / "stage5.yaml"
+    other.parent.mkdir()
+    other.write_text("extends: stage5\ncrowd:\n  count: 3\n")
+    evaluate_tasks([EvalSpec("stage5", "mpc_goal", 1, 0, OVERRIDES, 1)], tmp_path / "out", progress=False)
+    with pytest.raises(EvalError, match="task_sha256"):
+        evaluate_tasks([EvalSpec(str(other), "mpc_goal", 1, 0, OVERRIDES, 1)], tmp_path / "out", progress=False)
