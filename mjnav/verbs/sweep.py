@@ -13,7 +13,9 @@ then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen 
 training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
 for more episodes) and refuses, before running anything, a folder whose run was trained with other
 arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
-with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call.
+with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call. SIGTERM to the
+sweep is passed on to the running training or evaluation (which saves and ends), then the sweep
+exits with 143.
 
 Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
 tasks (``backend=ray``, ``address=`` for a running cluster; ``out`` must then be on a file system
@@ -26,14 +28,17 @@ collision and timeout rates, time to goal and path length (:data:`HEADLINE`).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import itertools
 import json
 import math
 import re
+import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -203,12 +208,40 @@ def _reserved(train: Sequence[str], cpus: int) -> list[str]:
 # ---------------------------------------------------------------------------- one cell
 
 def _mjnav(args: Sequence[str], log: Path) -> int:
-    """``python -m mjnav ARGS`` in a child process (this interpreter), output appended to ``log``."""
+    """``python -m mjnav ARGS`` in a child process (this interpreter), output appended to ``log``.
+
+    SIGTERM to this process (``kill``, a batch system's time limit) is passed on to the child, so a
+    training saves its checkpoint and ends with the sweep instead of running on alone.
+    """
     with open(log, "a", encoding="utf-8") as f:
         f.write(f"$ {sys.executable} -m mjnav {' '.join(args)}\n")
         f.flush()
-        return subprocess.run([sys.executable, "-m", "mjnav", *args], stdout=f, stderr=subprocess.STDOUT,
-                              check=False).returncode
+        child = subprocess.Popen([sys.executable, "-m", "mjnav", *args], stdout=f, stderr=subprocess.STDOUT)
+        with _passing_sigterm_to(child) as stopped:
+            code = child.wait()
+        if stopped:
+            raise SystemExit(128 + signal.SIGTERM)
+        return code
+
+
+@contextlib.contextmanager
+def _passing_sigterm_to(child: subprocess.Popen) -> Iterator[list[bool]]:
+    """While inside, SIGTERM is sent on to ``child`` and noted in the list yielded (empty until then)."""
+    stopped: list[bool] = []
+    if threading.current_thread() is not threading.main_thread():  # signals reach only the main thread
+        yield stopped
+        return
+
+    def on_sigterm(signum: int, frame: Any) -> None:
+        del signum, frame
+        stopped.append(True)
+        child.terminate()
+
+    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    try:
+        yield stopped
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _run_folder(folder: Path) -> Path | None:

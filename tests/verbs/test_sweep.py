@@ -5,6 +5,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -192,3 +197,28 @@ def test_cells_as_ray_tasks(tmp_path) -> None:
     pytest.importorskip("ray")
     assert main(["sweep", *TINY, "seeds=0", "backend=ray", f"out={tmp_path}"]) == 0
     assert json.loads((tmp_path / "seed-0" / "result.json").read_text())["summary"]["episodes"] == 2
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads child processes from /proc")
+def test_sigterm_to_a_sweep_ends_its_training_too(tmp_path) -> None:
+    """``kill`` (SIGTERM) reaches the sweep only; it passes it on, the training saves and ends, and
+    the sweep exits with 143 instead of leaving the training to run on alone."""
+    argv = [a for a in TINY if not a.startswith("train.iterations")]
+    sweep_ = subprocess.Popen([sys.executable, "-m", "mjnav", "sweep", *argv, "train.iterations=100000", "seeds=0",
+                               f"out={tmp_path}"], cwd=Path(__file__).parents[2])
+    log, children = tmp_path / "seed-0" / "train.log", []
+    try:
+        deadline = time.monotonic() + 120
+        while "[stage1] it " not in (log.read_text() if log.is_file() else "") and time.monotonic() < deadline:
+            time.sleep(0.2)
+        children += [int(c) for t in Path(f"/proc/{sweep_.pid}/task").iterdir()
+                     for c in (t / "children").read_text().split()]
+        sweep_.terminate()
+        assert sweep_.wait(timeout=60) == 143
+    finally:
+        sweep_.kill()
+        left = [pid for pid in children if Path(f"/proc/{pid}").exists()]
+        for pid in left:  # not to leave a training running if this fails
+            os.kill(pid, signal.SIGKILL)
+    assert len(children) == 1 and left == []  # reaped by the sweep: it waited for it
+    assert "SIGTERM: finishing this iteration" in log.read_text()
