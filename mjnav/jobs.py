@@ -13,11 +13,12 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
+import socket
 import time
 from collections.abc import Iterator
 from typing import Any
 
-__all__ = ["ARRAY_TASK_ENV", "joined_ray", "unique_stamp", "usable_cores"]
+__all__ = ["ARRAY_TASK_ENV", "check_reachable", "joined_ray", "unique_stamp", "usable_cores"]
 
 #: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
 ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
@@ -52,6 +53,25 @@ def unique_stamp(now: float | None = None) -> str:
         pass
     _ISSUED.add(stamp)
     return stamp
+
+
+def check_reachable(address: str, timeout_s: float = 10.0) -> None:
+    """Raise ``ConnectionError`` at once when nothing answers at a Ray ``HOST:PORT`` address.
+
+    ``ray.init`` keeps retrying a wrong address for many minutes, printing warnings; this opens one
+    TCP connection first. ``auto``, ``local`` and ``ray://`` addresses are left to Ray.
+
+    Raises:
+        ConnectionError: No connection within ``timeout_s`` seconds; the message names the address.
+    """
+    host, sep, port = address.rpartition(":")
+    if not sep or not port.isdigit() or "://" in address:
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except OSError as err:
+        raise ConnectionError(f"address: no Ray cluster answers at {address} ({err}); start one with "
+                              "`ray start --head` there, or leave out address= for a local Ray") from None
 
 
 @contextlib.contextmanager

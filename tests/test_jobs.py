@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import re
+import socket
 
 import pytest
 
@@ -65,3 +66,16 @@ def test_two_runs_started_in_one_second_get_two_folders(monkeypatch: pytest.Monk
     first, second = session.plan_run(args).run_dir, session.plan_run(args).run_dir
     assert first != second and first.parent == second.parent == tmp_path
     assert first.name.startswith("stage1-") and re.search(r"-\d{8}-\d{6}-", first.name)
+
+
+def test_a_ray_address_where_nothing_answers_is_refused_at_once() -> None:
+    """``ray.init`` retries a wrong address for minutes; one TCP connection tells at once."""
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen()
+        port = listening.getsockname()[1]
+        jobs.check_reachable(f"127.0.0.1:{port}")  # something answers
+    with pytest.raises(ConnectionError, match=f"no Ray cluster answers at 127.0.0.1:{port}"):
+        jobs.check_reachable(f"127.0.0.1:{port}")  # closed now
+    for left_to_ray in ("auto", "local", "ray://head:10001"):
+        jobs.check_reachable(left_to_ray)
