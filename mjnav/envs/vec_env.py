@@ -159,8 +159,7 @@ class NavVecEnv(VecEnv):
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
         self._closed = False
-        self._split = (0.0, 0.0, 0.0)  # seconds of the last call: own block, wait, sending the command
-        self._sent_s = 0.0
+        self._split = (0.0, 0.0)  # seconds of the last call: own block, wait
         self._pending: np.ndarray | None = None  # episode lengths after the dispatched step
         self._remote = 0  # worker processes (the first handles)
         try:
@@ -226,25 +225,21 @@ class NavVecEnv(VecEnv):
         return self._finish(command, arg)
 
     def _send(self, command: str, arg: Any = None) -> None:
-        """Send ``command`` to the worker processes (not to this process's own block).
-
-        Notes in ``_sent_s`` the seconds it took; closes everything on failure.
-        """
-        begin = time.perf_counter()
+        """Send ``command`` to the worker processes (not to this process's own block); closes
+        everything on failure."""
         try:
             for handle in self._handles[: self._remote]:
                 handle.request(command, arg)
         except BaseException:
             self.close()
             raise
-        self._sent_s = time.perf_counter() - begin
 
     def _finish(self, command: str, arg: Any = None) -> list[Any]:
         """Run ``command`` on this process's own block (when it steps one), then collect every reply.
 
         The worker processes must have been sent ``command`` (:meth:`_send`). Notes in ``_split``
-        the seconds this process spent on its own block (0 when it steps none), the seconds it
-        then waited for the replies and the seconds the send took; closes everything on failure.
+        the seconds this process spent on its own block (0 when it steps none) and the seconds it
+        then waited for the replies; closes everything on failure.
         """
         try:
             start = time.perf_counter()
@@ -253,7 +248,7 @@ class NavVecEnv(VecEnv):
                 handle.request(command, arg)
             ready = time.perf_counter()
             replies = [handle.result(self.step_timeout_s) for handle in self._handles]
-            self._split = (ready - start if local else 0.0, time.perf_counter() - ready, self._sent_s)
+            self._split = (ready - start if local else 0.0, time.perf_counter() - ready)
             return replies
         except BaseException:
             self.close()
@@ -315,7 +310,12 @@ class NavVecEnv(VecEnv):
         self._send("step")
         self._pending = lengths
 
+    def _check_open(self, call: str) -> None:
+        if self._closed:
+            raise RuntimeError(f"{call}() on a closed adapter (by close(), or after a failed step or worker)")
+
     def _check_idle(self, call: str) -> None:
+        self._check_open(call)
         if self._pending is not None:
             raise RuntimeError(f"{call}() while a dispatched step is running: call step() with its actions first")
 
@@ -338,6 +338,7 @@ class NavVecEnv(VecEnv):
             EnvError: An environment raised or a worker died; the adapter is closed.
         """
         start = time.perf_counter()
+        self._check_open("step")
         if self._pending is None:
             self._start_step(actions)
         elif not np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), self._buf["actions"]):
@@ -345,8 +346,6 @@ class NavVecEnv(VecEnv):
             self.close()
             raise ValueError("step() got other actions than dispatch(): the worker processes stepped with "
                              "the dispatched ones, so the adapter is closed")
-        else:
-            self._sent_s = 0.0  # the command went out before this call: not part of its time
         lengths = self._pending
         self._pending = None
         sent = time.perf_counter()
@@ -380,7 +379,7 @@ class NavVecEnv(VecEnv):
         busy = [reply[3] for reply in replies[: self._remote]]
         log["perf/env_step_ms"] = 1e3 * (end - start)
         log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
-        log["perf/transfer_ms"] = 1e3 * (transfer + self._split[2])
+        log["perf/transfer_ms"] = 1e3 * transfer  # with the send, when this call sent the step
         log["perf/worker_step_ms"] = 1e3 * sum(busy) / len(busy) if busy else 0.0
         log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
         log["perf/worker_cpu_max_ms"] = 1e3 * max((reply[4] for reply in replies[: self._remote]), default=0.0)
@@ -424,6 +423,7 @@ class NavVecEnv(VecEnv):
         if getattr(self, "_closed", True):
             return
         self._closed = True
+        self._pending = None
         for handle in self._handles:
             with contextlib.suppress(Exception):
                 handle.close()

@@ -383,3 +383,19 @@ def test_dispatch_misuse_is_refused() -> None:
         with pytest.raises(ValueError, match="other actions than dispatch"):
             env.step(actions + 1.0)
         assert env._closed
+        for call in (lambda: env.step(actions), lambda: env.dispatch(actions), env.reset):  # said so, not KeyError
+            with pytest.raises(RuntimeError, match="on a closed adapter"):
+                call()
+
+
+@pytest.mark.parametrize("dispatched", [False, True])
+def test_the_timed_parts_of_a_step_fit_in_the_step(dispatched: bool) -> None:
+    """Own block, wait and transfers (the send counted once) add up to no more than the whole step."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
+        actions = torch.zeros(4, ACT_DIM)
+        for _ in range(5):
+            if dispatched:
+                env.dispatch(actions)
+            log = env.step(actions)[3]["log"]
+            parts = log["perf/own_block_ms"] + log["perf/wait_ms"] + log["perf/transfer_ms"]
+            assert 0.0 < parts <= log["perf/env_step_ms"]
