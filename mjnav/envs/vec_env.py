@@ -60,6 +60,7 @@ from mjnav.envs.workers import (
     _views,
     _WorkerHandle,
 )
+from mjnav.schema import ConfigError
 
 __all__ = ["OUTCOMES", "EnvError", "NavVecEnv"]
 
@@ -73,7 +74,7 @@ def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range
             even blocks. Ignored with fewer than 2 workers (one block).
 
     Raises:
-        ValueError: ``first`` leaves a block empty (it must be in [1, N - W + 1]).
+        ConfigError: ``first`` leaves a block empty (it must be in [1, N - W + 1]).
     """
     count = max(1, workers)
     if first is None or count == 1:
@@ -81,8 +82,8 @@ def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range
     elif 1 <= first <= num_envs - count + 1:
         sizes = [first, *(len(b) for b in np.array_split(np.arange(num_envs - first), count - 1))]
     else:
-        raise ValueError(f"main_envs must be in [1, {num_envs - count + 1}] with {num_envs} environments "
-                         f"on {workers} workers, got {first}")
+        raise ConfigError(f"main_envs must be in [1, {num_envs - count + 1}] with {num_envs} environments "
+                          f"on {workers} workers, got {first}")
     ends = np.cumsum(sizes)
     return [range(int(end - size), int(end)) for size, end in zip(sizes, ends, strict=True)]
 

@@ -213,6 +213,9 @@ class TrainConfig:
         )
         _check(self.main_envs == -1 or 1 <= self.main_envs < self.num_envs, "main_envs",
                f"must be -1 or in [1, num_envs) ({self.num_envs})")
+        _check(self.main_envs == -1 or self.workers < 2 or self.main_envs <= self.num_envs - self.workers + 1,
+               "main_envs", f"must leave each of the other {self.workers - 1} workers an environment "
+               f"(<= {self.num_envs - self.workers + 1} of {self.num_envs})")
         _check(self.iterations >= 1 and self.steps_per_env >= 1, "iterations", "must be >= 1")
         _check(self.learning_rate > 0, "learning_rate", "must be > 0")
         _check(0 < self.gamma <= 1 and 0 <= self.lam <= 1, "gamma", "needs 0 < gamma <= 1, 0 <= lam <= 1")

@@ -469,3 +469,13 @@ def test_main_envs_sets_the_trainer_block() -> None:
         assert env.blocks == [range(0, 1), range(1, 3)]
     finally:
         env.close()
+
+
+def test_main_envs_that_leave_a_worker_nothing_is_a_config_error() -> None:
+    """Checked with the other PPO settings, before a run folder is written; with workers=-1 (known
+    only when the adapter is built) the adapter's refusal is a ConfigError too: one error line."""
+    with pytest.raises(ConfigError, match="must leave each of the other 2 workers an environment"):
+        load_train(["num_envs=4", "workers=3", "main_envs=3"])
+    load_train(["num_envs=4", "workers=3", "main_envs=2"])
+    with pytest.raises(ConfigError, match="main_envs must be in"):
+        NavVecEnv(fake_env_fn, num_envs=4, seed=0, workers=3, main_envs=3)
