@@ -561,7 +561,8 @@ def _chunks(indices: Sequence[int], workers: int, most: int | None = None) -> li
 
 
 def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, Any]]:
-    """Episodes as Ray tasks of :func:`_run_chunk`, yielded chunk by chunk as they finish.
+    """Episodes as Ray tasks of :func:`_run_chunk` (at most 8 episodes each, so a kill loses few),
+    yielded chunk by chunk as they finish.
 
     Joins the running Ray if this process already called ``ray.init`` (a benchmark times the
     evaluation alone), else starts one (``spec.address``'s cluster, or a local Ray with ``workers``
@@ -577,15 +578,19 @@ def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, A
         except ConnectionError as err:
             raise EvalError(str(err)) from None
     _check_policy(spec)
-    with joined_ray(ray, spec.address, spec.workers):
-        task = ray.remote(num_cpus=1, max_retries=0)(_run_chunk)
-        pending = [task.remote(spec, chunk) for chunk in _chunks(indices, spec.workers)]
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            try:
-                yield from ray.get(done[0])
-            except ray.exceptions.RayTaskError as err:
-                raise EvalError(f"Ray task failed: {err.cause if err.cause is not None else err}") from None
+    try:
+        with joined_ray(ray, spec.address, spec.workers):
+            task = ray.remote(num_cpus=1, max_retries=0)(_run_chunk)
+            pending = [task.remote(spec, chunk) for chunk in _chunks(indices, spec.workers, most=8)]
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                try:
+                    yield from ray.get(done[0])
+                except ray.exceptions.RayError as err:  # a task's exception, a crashed worker, a lost node
+                    cause = getattr(err, "cause", None)
+                    raise EvalError(f"Ray task failed: {cause if cause is not None else err}") from None
+    except ConnectionError as err:  # address=auto and no cluster running
+        raise EvalError(f"backend=ray: {err}") from None
 
 
 #: Where the episodes of an evaluation run: ``backend=NAME`` → ``results(spec, indices)``, the

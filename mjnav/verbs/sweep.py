@@ -13,9 +13,9 @@ then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen 
 training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
 for more episodes) and refuses, before running anything, a folder whose run was trained with other
 arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
-with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call. SIGTERM to the
-sweep is passed on to the running training or evaluation (which saves and ends), then the sweep
-exits with 143.
+with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call. With
+``backend=local``, SIGTERM to the sweep is passed on to the running training or evaluation (which
+saves and ends), then the sweep exits with 143.
 
 Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
 tasks (``backend=ray``, ``address=`` for a running cluster; ``out`` must then be on a file system
@@ -211,14 +211,19 @@ def _mjnav(args: Sequence[str], log: Path) -> int:
     """``python -m mjnav ARGS`` in a child process (this interpreter), output appended to ``log``.
 
     SIGTERM to this process (``kill``, a batch system's time limit) is passed on to the child, so a
-    training saves its checkpoint and ends with the sweep instead of running on alone.
+    training saves its checkpoint and ends with the sweep instead of running on alone; so is Ctrl-C.
     """
     with open(log, "a", encoding="utf-8") as f:
         f.write(f"$ {sys.executable} -m mjnav {' '.join(args)}\n")
         f.flush()
         child = subprocess.Popen([sys.executable, "-m", "mjnav", *args], stdout=f, stderr=subprocess.STDOUT)
-        with _passing_sigterm_to(child) as stopped:
-            code = child.wait()
+        try:
+            with _passing_sigterm_to(child) as stopped:
+                code = child.wait()
+        except BaseException:  # Ctrl-C: the child saves and ends first
+            child.terminate()
+            child.wait()
+            raise
         if stopped:
             raise SystemExit(128 + signal.SIGTERM)
         return code
@@ -361,12 +366,26 @@ def _ray(todo: Sequence[Cell], opts: SweepOptions) -> Iterator[dict[str, Any]]:
             check_reachable(opts.address)
         except ConnectionError as err:
             raise ConfigError(str(err)) from None
-    with joined_ray(ray, opts.address, max(opts.cpus_per_run, usable_cores())):
-        task = ray.remote(num_cpus=opts.cpus_per_run, max_retries=0)(run_cell)
-        pending = [task.remote(cell) for cell in todo]
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(done[0])
+    try:
+        with joined_ray(ray, opts.address, max(opts.cpus_per_run, usable_cores())):
+            yield from _ray_cells(ray, todo, opts.cpus_per_run)
+    except ConnectionError as err:  # address=auto and no cluster running
+        raise ConfigError(f"backend=ray: {err}") from None
+
+
+def _ray_cells(ray: Any, todo: Sequence[Cell], cpus: int) -> Iterator[dict[str, Any]]:
+    """The cells as Ray tasks, yielded as they end; a crashed task is a failed cell (run_cell
+    returns its own failures)."""
+    task = ray.remote(num_cpus=cpus, max_retries=0)(run_cell)
+    pending = {task.remote(cell): cell for cell in todo}
+    while pending:
+        (done,), _ = ray.wait(list(pending), num_returns=1)
+        cell = pending.pop(done)
+        try:
+            yield ray.get(done)
+        except ray.exceptions.RayError as err:  # a crashed worker process or a lost node
+            head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
+            yield _failed(cell, head, f"Ray ({type(err).__name__})", cell.folder / "train.log")
 
 
 BACKENDS.update(local=_local, ray=_ray)
@@ -438,13 +457,14 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         keys = [k for k, _ in todo[0].point]
         out = todo[0].folder.parent
         results = []
-        for result in BACKENDS[opts.backend](todo, opts):
-            state = "done before (its result.json)" if result.pop("skipped", False) else "done"
-            if result.pop("unchecked", False):
-                state += ", recorded without its arguments: not checked"
-            state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else state
-            print(f"sweep: {result['cell']}: {state}", file=sys.stderr, flush=True)
-            results.append(result)
+        with contextlib.closing(BACKENDS[opts.backend](todo, opts)) as stream:
+            for result in stream:
+                state = "done before (its result.json)" if result.pop("skipped", False) else "done"
+                if result.pop("unchecked", False):
+                    state += ", recorded without its arguments: not checked"
+                state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else state
+                print(f"sweep: {result['cell']}: {state}", file=sys.stderr, flush=True)
+                results.append(result)
     except ConfigError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
