@@ -159,6 +159,7 @@ class NavVecEnv(VecEnv):
         self.step_timeout_s = step_timeout_s
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
+        self._shm_named = False  # the segment still has its name in /dev/shm
         self._closed = False
         self._split = (0.0, 0.0)  # seconds of the last call: own block, wait
         self._pending: np.ndarray | None = None  # episode lengths after the dispatched step
@@ -191,7 +192,7 @@ class NavVecEnv(VecEnv):
         self._check_spaces(described, limit)
         layout, nbytes = _layout(self.num_envs, self.observation_space.shape[0], self.num_actions, self.critic_dim)
         if remote:
-            self._shm = SharedMemory(create=True, size=nbytes)
+            self._shm, self._shm_named = SharedMemory(create=True, size=nbytes), True
             self._buf = _views(self._shm.buf, layout)
         else:
             self._buf = _views(bytearray(nbytes), layout)
@@ -199,6 +200,9 @@ class NavVecEnv(VecEnv):
             handle.request("attach", self._buf if isinstance(handle, _LocalHandle) else (self._shm.name, layout))
         for handle in self._handles:
             handle.result(timeout)
+        if self._shm is not None:  # every worker has mapped it: its name goes (the mappings stay valid),
+            self._shm.unlink()  # so a SIGKILL of every process leaves nothing in /dev/shm
+            self._shm_named = False
         self._term_names: set[str] = set()
         self.reset()
 
@@ -431,7 +435,8 @@ class NavVecEnv(VecEnv):
         self._buf = {}
         if self._shm is not None:
             self._shm.close()
-            self._shm.unlink()
+            if self._shm_named:  # closed before every worker had mapped it
+                self._shm.unlink()
             self._shm = None
 
     def __enter__(self) -> NavVecEnv:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import time
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -399,3 +400,14 @@ def test_the_timed_parts_of_a_step_fit_in_the_step(dispatched: bool) -> None:
             log = env.step(actions)[3]["log"]
             parts = log["perf/own_block_ms"] + log["perf/wait_ms"] + log["perf/transfer_ms"]
             assert 0.0 < parts <= log["perf/env_step_ms"]
+
+
+@pytest.mark.skipif(not Path("/dev/shm").is_dir(), reason="POSIX shared memory in /dev/shm")
+def test_the_shared_memory_has_no_name_once_the_workers_mapped_it() -> None:
+    """Nothing is left in /dev/shm when every process is SIGKILLed (no close() runs): the segment's
+    name is removed as soon as the workers have mapped it, and the steps go on through the mapping."""
+    before = set(os.listdir("/dev/shm"))
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
+        assert set(os.listdir("/dev/shm")) - before == set()
+        env.step(torch.zeros(4, ACT_DIM))
+    assert set(os.listdir("/dev/shm")) - before == set()
