@@ -177,7 +177,8 @@ def test_a_cell_killed_while_evaluating_is_evaluated_not_trained_again(tmp_path,
     calls.clear()
     capsys.readouterr()
     assert main([*argv, "episodes=300"]) == 0 and calls == []
-    assert "seed-2: done before (its result.json), recorded without its arguments: not checked" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert "seed-2: done before (its result.json), recorded without its arguments: not checked" in said
 
 
 def test_a_real_tiny_sweep_trains_evaluates_and_resumes(tmp_path, capsys) -> None:
