@@ -324,6 +324,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
         if "summary" in recorded:  # null back to NaN, as _summary reads an empty cell
             recorded["summary"] = {k: math.nan if v is None else v for k, v in recorded["summary"].items()}
         unchecked = {"unchecked": True} if "train" not in recorded else {}
+        del recorded["file"]
         return {**recorded, "point": head["point"], "skipped": True, **unchecked}
     cell.folder.mkdir(parents=True, exist_ok=True)
     (cell.folder / "failed.json").unlink(missing_ok=True)
