@@ -81,10 +81,15 @@ def joined_ray(ray: Any, address: str | None, num_cpus: int) -> Iterator[None]:
 
     A Ray this process already started is joined as it is (a benchmark times the work alone);
     otherwise ``address``'s cluster, or a local Ray of ``num_cpus`` CPUs without the dashboard.
+
+    Raises:
+        ConnectionError: No cluster at ``address`` (:func:`check_reachable`, or Ray's own error for
+            ``auto`` with none running).
     """
     started = not ray.is_initialized()
     if started:
         if address is not None:
+            check_reachable(address)
             ray.init(address=address, log_to_driver=False)
         else:
             ray.init(num_cpus=max(1, num_cpus), include_dashboard=False, log_to_driver=False)

@@ -79,3 +79,19 @@ def test_a_ray_address_where_nothing_answers_is_refused_at_once() -> None:
         jobs.check_reachable(f"127.0.0.1:{port}")  # closed now
     for left_to_ray in ("auto", "local", "ray://head:10001"):
         jobs.check_reachable(left_to_ray)
+
+
+def test_joined_ray_refuses_an_address_where_nothing_answers_before_ray_init() -> None:
+    class NoRay:
+        def is_initialized(self) -> bool:
+            return False
+
+        def init(self, **kwargs: object) -> None:
+            raise AssertionError("ray.init must not be reached")
+
+    with socket.socket() as closed:
+        closed.bind(("127.0.0.1", 0))
+        port = closed.getsockname()[1]
+    with pytest.raises(ConnectionError, match="no Ray cluster answers"):
+        with jobs.joined_ray(NoRay(), f"127.0.0.1:{port}", 1):
+            pass

@@ -58,7 +58,7 @@ from mjnav.eval.metrics import (
 )
 from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
-from mjnav.jobs import check_reachable, joined_ray, usable_cores
+from mjnav.jobs import joined_ray, usable_cores
 from mjnav import shipped
 from mjnav.schema import ConfigError, to_dict
 
@@ -572,11 +572,6 @@ def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, A
         import ray  # deferred: an optional extra (pip install mjnav[ray]), only for backend=ray
     except ImportError:
         raise EvalError("backend=ray needs Ray: pip install 'mjnav[ray]'") from None
-    if spec.address is not None and not ray.is_initialized():
-        try:
-            check_reachable(spec.address)
-        except ConnectionError as err:
-            raise EvalError(str(err)) from None
     _check_policy(spec)
     try:
         with joined_ray(ray, spec.address, spec.workers):
@@ -589,7 +584,7 @@ def _ray_results(spec: EvalSpec, indices: Sequence[int]) -> Iterator[dict[str, A
                 except ray.exceptions.RayError as err:  # a task's exception, a crashed worker, a lost node
                     cause = getattr(err, "cause", None)
                     raise EvalError(f"Ray task failed: {cause if cause is not None else err}") from None
-    except ConnectionError as err:  # address=auto and no cluster running
+    except ConnectionError as err:  # nothing at address=, or address=auto and no cluster running
         raise EvalError(f"backend=ray: {err}") from None
 
 

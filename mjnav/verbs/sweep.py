@@ -45,7 +45,7 @@ from typing import Any
 
 from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
-from mjnav.jobs import check_reachable, joined_ray, usable_cores
+from mjnav.jobs import joined_ray, usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = ["HEADLINE", "Cell", "SweepOptions", "arguments", "cells", "check_recorded", "grammar", "run", "run_cell",
@@ -362,15 +362,10 @@ def _ray(todo: Sequence[Cell], opts: SweepOptions) -> Iterator[dict[str, Any]]:
         import ray  # deferred: an optional extra (pip install mjnav[ray]), only for backend=ray
     except ImportError:
         raise ConfigError("backend=ray needs Ray: pip install 'mjnav[ray]'") from None
-    if opts.address is not None and not ray.is_initialized():
-        try:
-            check_reachable(opts.address)
-        except ConnectionError as err:
-            raise ConfigError(str(err)) from None
     try:
         with joined_ray(ray, opts.address, max(opts.cpus_per_run, usable_cores())):
             yield from _ray_cells(ray, todo, opts.cpus_per_run)
-    except ConnectionError as err:  # address=auto and no cluster running
+    except ConnectionError as err:  # nothing at address=, or address=auto and no cluster running
         raise ConfigError(f"backend=ray: {err}") from None
 
 
