@@ -11,8 +11,9 @@ inside, ``train.log`` beside it), then ``mjnav evaluate policy=<run folder> epis
 then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen the grid in the same
 ``out``), the sweep skips a cell whose ``result.json`` has the same arguments, evaluates without
 training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
-for more episodes) and refuses, before running anything, a folder whose run was trained with other
-arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
+for more episodes), resumes a training that was stopped (``mjnav train resume=`` from its newest
+``model_<it>.pt``; ``resumed`` in its result) and refuses, before running anything, a folder whose run
+was trained with other arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
 with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call. With
 ``backend=local``, SIGTERM to the sweep is passed on to the running training or evaluation (which
 saves and ends), then the sweep exits with 143.
@@ -42,6 +43,8 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
@@ -255,6 +258,26 @@ def _run_folder(folder: Path) -> Path | None:
     return runs[-1] if runs else None
 
 
+def _interrupted(folder: Path) -> Path | None:
+    """The newest run folder under a cell's folder that a stopped training left: a ``model_<it>.pt``
+    checkpoint and no ``policy.pt`` (SIGTERM, Ctrl-C, a batch system's time limit, a kill after a
+    periodic checkpoint)."""
+    # deferred: mjnav.train imports torch, not needed by `mjnav sweep --help`
+    from mjnav.train.runner import checkpoints
+
+    if not folder.is_dir():
+        return None
+    runs = [p for p in folder.iterdir()
+            if (p / "config.yaml").is_file() and not (p / "policy.pt").is_file() and checkpoints(p)]
+    return max(runs, key=lambda p: p.stat().st_mtime) if runs else None
+
+
+def _launched_with(run_dir: Path) -> list[str]:
+    """The ``mjnav train`` arguments a run folder was started with (its ``config.yaml``), ``out=`` left out."""
+    saved = yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8"))
+    return [a for a in saved["run"].get("argv", []) if not a.startswith("out=")]
+
+
 def _summary(path: Path) -> dict[str, Any]:
     """The first row of an evaluation's ``summary.csv``, numbers as floats."""
     with open(path, encoding="utf-8") as f:
@@ -275,12 +298,16 @@ def arguments(cell: Cell) -> dict[str, list[str]]:
 
 
 def _recorded(cell: Cell) -> dict[str, Any]:
-    """What an earlier call left in the cell: its ``result.json``, else its ``trained.json``, else {}."""
+    """What an earlier call left in the cell: its ``result.json``, else its ``trained.json``, else the
+    arguments of a stopped training to resume (``interrupted``: its run folder), else {}."""
     for name in ("result.json", "trained.json"):
         path = cell.folder / name
         if path.is_file():
             return {**json.loads(path.read_text(encoding="utf-8")), "file": name}
-    return {}
+    stopped = _interrupted(cell.folder)
+    if stopped is None:
+        return {}
+    return {"train": _launched_with(stopped), "file": f"{stopped.name}/config.yaml", "interrupted": stopped}
 
 
 def check_recorded(todo: Sequence[Cell]) -> None:
@@ -310,11 +337,13 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     A cell whose ``result.json`` has its arguments (:func:`arguments`) is done and skipped. A run
     trained by an earlier call (``trained.json``, or a ``result.json`` of other evaluation
     arguments, such as more episodes) is evaluated, not trained again; the evaluation picks up the
-    episodes already in ``eval/``. Call :func:`check_recorded` first.
+    episodes already in ``eval/``. A training an earlier call left stopped (a checkpoint, no
+    ``policy.pt``) goes on from its newest checkpoint. Call :func:`check_recorded` first.
 
     The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``train`` and
     ``evaluate`` (:func:`arguments`), ``run`` (run folder), ``summary`` (the evaluation's summary
-    row), or ``failed`` (which step) and ``log``; ``skipped`` (True) when it was read from an
+    row), ``resumed`` (the checkpoint a stopped training went on from, when it did), or ``failed``
+    (which step) and ``log``; ``skipped`` (True) when it was read from an
     earlier ``result.json``, ``unchecked`` (True) when that file predates the recorded arguments.
     NaN is written to ``result.json`` as null.
     """
@@ -330,18 +359,42 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     (cell.folder / "failed.json").unlink(missing_ok=True)
     run_dir = cell.folder / Path(recorded["run"]).name if "run" in recorded else None  # the sweep may have moved
     if run_dir is None or not (run_dir / "policy.pt").is_file():
-        log = cell.folder / "train.log"
-        run_dir = _run_folder(cell.folder) if _mjnav(["train", *cell.train, f"out={cell.folder}"], log) == 0 else None
+        run_dir, resumed = _train(cell, recorded.get("interrupted"))
         if run_dir is None:
-            return _failed(cell, head, "train", log)
-        trained = {"train": given["train"], "run": str(run_dir)}
+            return _failed(cell, head, "train", cell.folder / "train.log")
+        head.update(resumed)
+        trained = {"train": given["train"], "run": str(run_dir), **resumed}
         (cell.folder / "trained.json").write_text(json.dumps(trained, indent=1) + "\n", encoding="utf-8")
+    else:
+        head.update({k: recorded[k] for k in ("resumed",) if k in recorded})
     log = cell.folder / "eval.log"
     if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
         return _failed(cell, head, "evaluate", log)
     result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
     (cell.folder / "result.json").write_text(json.dumps(_no_nan(result), indent=1) + "\n", encoding="utf-8")
     return result
+
+
+def _train(cell: Cell, stopped: Path | None) -> tuple[Path | None, dict[str, str]]:
+    """Train the cell, or resume the training an earlier call left ``stopped``, from its newest checkpoint.
+
+    Returns:
+        The finished run folder (None when the training failed) and ``{"resumed": "model_<it>.pt"}``
+        when it went on from a checkpoint ({} otherwise).
+    """
+    # deferred: mjnav.train imports torch, not needed by `mjnav sweep --help`
+    from mjnav.train.runner import checkpoints
+
+    log = cell.folder / "train.log"
+    if stopped is None:
+        code, resumed = _mjnav(["train", *cell.train, f"out={cell.folder}"], log), {}
+    else:
+        resumed = {"resumed": checkpoints(stopped)[-1].name}
+        code = _mjnav(["train", f"resume={stopped}"], log)
+    if code != 0:
+        return None, resumed
+    run_dir = stopped if stopped is not None else _run_folder(cell.folder)
+    return (run_dir if run_dir is not None and (run_dir / "policy.pt").is_file() else None), resumed
 
 
 def _failed(cell: Cell, head: dict[str, Any], step: str, log: Path) -> dict[str, Any]:
@@ -456,6 +509,8 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         with contextlib.closing(BACKENDS[opts.backend](todo, opts)) as stream:
             for result in stream:
                 state = "done before (its result.json)" if result.pop("skipped", False) else "done"
+                if "resumed" in result and state == "done":
+                    state += f" (its stopped training went on from {result['resumed']})"
                 if result.pop("unchecked", False):
                     state += ", recorded without its arguments: not checked"
                 state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else state

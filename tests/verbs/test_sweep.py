@@ -10,13 +10,16 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import pytest
+import yaml
 
 from mjnav.args import parse
 from mjnav.cli import main
 from mjnav.jobs import usable_cores
+from mjnav.train.runner import checkpoints
 from mjnav.verbs import sweep
 
 TINY = ["task=stage1", "train.iterations=1", "train.num_envs=2", "train.steps_per_env=8", "train.workers=0",
@@ -81,7 +84,9 @@ def _fake_mjnav(calls: list[list[str]], fail: str | None = None):
         if fail and any(fail in a for a in args):
             return 1
         values = dict(a.split("=", 1) for a in args[1:])
-        if args[0] == "train":
+        if args[0] == "train" and "resume" in values:  # the stopped run goes on and ends
+            (Path(values["resume"]) / "policy.pt").write_bytes(b"")
+        elif args[0] == "train":
             run = Path(values["out"]) / f"stage1-{len(calls)}"
             run.mkdir(parents=True)
             (run / "policy.pt").write_bytes(b"")
@@ -182,6 +187,43 @@ def test_a_cell_killed_while_evaluating_is_evaluated_not_trained_again(tmp_path,
     assert "seed-2: done before (its result.json), recorded without its arguments: not checked" in said
 
 
+def _stopped_run(cell: sweep.Cell, train: Sequence[str], *iterations: int) -> Path:
+    """A run folder as a stopped ``mjnav train`` leaves it: config.yaml, checkpoints, no policy.pt."""
+    run = cell.folder / "stage1-20261207-010203-42-abcd"
+    run.mkdir(parents=True)
+    (run / "config.yaml").write_text(yaml.safe_dump({"run": {"argv": [*train, f"out={cell.folder}"]}}))
+    for it in iterations:
+        (run / f"model_{it}.pt").write_bytes(b"")
+    (run / "seed").write_text(str(cell.seed))
+    return run
+
+
+def test_a_stopped_training_goes_on_from_its_checkpoint(tmp_path, monkeypatch, capsys) -> None:
+    """A sweep stopped while training (SIGTERM, a time limit) resumes that training when started
+    again, instead of training the cell from the start."""
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1,2", f"out={tmp_path}"]
+    first, second = _cells(argv[1:])
+    run = _stopped_run(first, first.train, 5, 40, 10)
+    _stopped_run(second, second.train)  # stopped before its first checkpoint: trained again
+    assert main(argv) == 0
+    assert [c[:2] for c in calls[:2]] == [["train", f"resume={run}"], ["evaluate", f"policy={run}"]]
+    assert [c[0] for c in calls[2:]] == ["train", "evaluate"] and calls[2][1] == "task=stage1"
+    result = json.loads((first.folder / "result.json").read_text())
+    assert result["run"] == str(run) and result["resumed"] == "model_40.pt"
+    assert json.loads((first.folder / "trained.json").read_text())["resumed"] == "model_40.pt"
+    assert "seed-1: done (its stopped training went on from model_40.pt)" in capsys.readouterr().err
+
+
+def test_a_stopped_training_with_other_arguments_is_refused(tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1", f"out={tmp_path}"]
+    (cell,) = _cells(argv[1:])
+    _stopped_run(cell, [*cell.train[:-1], "train.iterations=7", cell.train[-1]], 3)
+    assert main(argv) == 2 and calls == []
+    assert "its stage1-20261207-010203-42-abcd/config.yaml: train.iterations=7; now: -" in capsys.readouterr().err
+
+
 def test_a_real_tiny_sweep_trains_evaluates_and_resumes(tmp_path, capsys) -> None:
     argv = ["sweep", *TINY, "seeds=0,1", f"out={tmp_path}"]
     assert main(argv) == 0
@@ -202,12 +244,13 @@ def test_cells_as_ray_tasks(tmp_path) -> None:
 
 
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads child processes from /proc")
-def test_sigterm_to_a_sweep_ends_its_training_too(tmp_path) -> None:
+def test_sigterm_to_a_sweep_ends_its_training_too_and_a_rerun_resumes_it(tmp_path) -> None:
     """``kill`` (SIGTERM) reaches the sweep only; it passes it on, the training saves and ends, and
-    the sweep exits with 143 instead of leaving the training to run on alone."""
-    argv = [a for a in TINY if not a.startswith("train.iterations")]
-    sweep_ = subprocess.Popen([sys.executable, "-m", "mjnav", "sweep", *argv, "train.iterations=100000", "seeds=0",
-                               f"out={tmp_path}"], cwd=Path(__file__).parents[2])
+    the sweep exits with 143 instead of leaving the training to run on alone. Started again, the
+    sweep resumes that training from the checkpoint it saved."""
+    argv = ["sweep", *(a for a in TINY if not a.startswith("train.iterations")), "train.iterations=300", "seeds=0",
+            f"out={tmp_path}"]  # 300 tiny iterations: ~6 s here, far more than the SIGTERM takes to arrive
+    sweep_ = subprocess.Popen([sys.executable, "-m", "mjnav", *argv], cwd=Path(__file__).parents[2])
     log, children = tmp_path / "seed-0" / "train.log", []
     try:
         deadline = time.monotonic() + 120
@@ -224,3 +267,11 @@ def test_sigterm_to_a_sweep_ends_its_training_too(tmp_path) -> None:
             os.kill(pid, signal.SIGKILL)
     assert len(children) == 1 and left == []  # reaped by the sweep: it waited for it
     assert "SIGTERM: finishing this iteration" in log.read_text()
+    (stopped,) = [p for p in (tmp_path / "seed-0").iterdir() if p.is_dir()]
+    saved = checkpoints(stopped)[-1].name
+    assert not (stopped / "policy.pt").exists() and saved != "model_299.pt"
+    assert main(argv) == 0
+    result = json.loads((tmp_path / "seed-0" / "result.json").read_text())
+    assert result["run"] == str(stopped) and result["resumed"] == saved and result["summary"]["episodes"] == 2
+    assert checkpoints(stopped)[-1].name == "model_299.pt" and (stopped / "policy.pt").is_file()
+    assert yaml.safe_load((stopped / "config.yaml").read_text())["run"]["resumes"] == [[f"resume={stopped}"]]
