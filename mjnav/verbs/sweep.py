@@ -13,10 +13,10 @@ then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen 
 training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
 for more episodes), resumes a training that was stopped (``mjnav train resume=`` from its newest
 ``model_<it>.pt``; ``resumed`` in its result) and refuses, before running anything, a folder whose run
-was trained with other arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
-with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last call. With
-``backend=local``, SIGTERM to the sweep is passed on to the running training or evaluation (which
-saves and ends), then the sweep exits with 143.
+was trained with other arguments. A failed cell writes ``failed.json`` with its log, the rest go on,
+and the sweep exits with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last
+call. With either backend, SIGTERM to the sweep is passed on to the running trainings or evaluations
+(which save and end), then the sweep exits with 143; started again, it goes on.
 
 Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
 tasks (``backend=ray``, ``address=`` for a running cluster; ``out`` must then be on a file system
@@ -222,8 +222,8 @@ def _mjnav(args: Sequence[str], log: Path) -> int:
         child = subprocess.Popen([sys.executable, "-m", "mjnav", *args], stdout=f, stderr=subprocess.STDOUT)
         try:
             with _passing_sigterm_to(child) as stopped:
-                code = child.wait()
-        except BaseException:  # Ctrl-C: the child saves and ends first
+                code = _wait(child)
+        except BaseException:  # Ctrl-C, a cancelled Ray task: the child saves and ends first
             child.terminate()
             child.wait()
             raise
@@ -232,18 +232,36 @@ def _mjnav(args: Sequence[str], log: Path) -> int:
         return code
 
 
+def _wait(child: subprocess.Popen) -> int:
+    """``child.wait()`` in short slices: an interrupt that is no signal (``ray.cancel``'s
+    KeyboardInterrupt in a Ray task) is raised between them, not after the child has ended."""
+    while True:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            return child.wait(timeout=0.2)
+
+
 @contextlib.contextmanager
 def _passing_sigterm_to(child: subprocess.Popen) -> Iterator[list[bool]]:
     """While inside, SIGTERM is sent on to ``child`` and noted in the list yielded (empty until then)."""
+    with _on_sigterm(child.terminate) as stopped:
+        yield stopped
+
+
+@contextlib.contextmanager
+def _on_sigterm(action: Callable[[], None]) -> Iterator[list[bool]]:
+    """While inside, SIGTERM calls ``action`` and is noted in the list yielded (empty until then); a
+    second one exits at once (``SystemExit`` 143). Outside the main thread (no signals there): nothing."""
     stopped: list[bool] = []
     if threading.current_thread() is not threading.main_thread():  # signals reach only the main thread
         yield stopped
         return
 
     def on_sigterm(signum: int, frame: Any) -> None:
-        del signum, frame
+        del frame
+        if stopped:
+            raise SystemExit(128 + signum)
         stopped.append(True)
-        child.terminate()
+        action()
 
     previous = signal.signal(signal.SIGTERM, on_sigterm)
     try:
@@ -424,17 +442,43 @@ def _ray(todo: Sequence[Cell], opts: SweepOptions) -> Iterator[dict[str, Any]]:
 
 def _ray_cells(ray: Any, todo: Sequence[Cell], cpus: int) -> Iterator[dict[str, Any]]:
     """The cells as Ray tasks, yielded as they end; a crashed task is a failed cell (run_cell
-    returns its own failures)."""
+    returns its own failures).
+
+    SIGTERM cancels the tasks (``ray.cancel``: a running cell passes it on to its training, which
+    saves a checkpoint) and waits for them to end, then exits with 143; a second SIGTERM exits at
+    once. Ray's own handler (installed by ``ray.init``) would exit at once and lose the trainings'
+    progress since their last periodic checkpoint.
+    """
     task = ray.remote(num_cpus=cpus, max_retries=0)(run_cell)
     pending = {task.remote(cell): cell for cell in todo}
-    while pending:
-        (done,), _ = ray.wait(list(pending), num_returns=1)
-        cell = pending.pop(done)
-        try:
-            yield ray.get(done)
-        except ray.exceptions.RayError as err:  # a crashed worker process or a lost node
-            head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
-            yield _failed(cell, head, f"Ray ({type(err).__name__})", cell.folder / "train.log")
+    with _on_sigterm(lambda: None) as stopped:
+        while pending:
+            if stopped:
+                _cancel(ray, pending)
+                raise SystemExit(128 + signal.SIGTERM)
+            done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
+            if done:
+                yield _ray_result(ray, done[0], pending.pop(done[0]))
+
+
+def _cancel(ray: Any, pending: dict[Any, Cell]) -> None:
+    """Cancel the Ray tasks ``pending`` and wait until each has ended (its training saved)."""
+    print(f"sweep: SIGTERM: stopping {len(pending)} cell(s); their trainings save a checkpoint "
+          "(SIGTERM again: exit at once)", file=sys.stderr, flush=True)
+    for ref in pending:
+        ray.cancel(ref)
+    refs = list(pending)
+    while refs:
+        _, refs = ray.wait(refs, num_returns=len(refs), timeout=0.5)
+
+
+def _ray_result(ray: Any, done: Any, cell: Cell) -> dict[str, Any]:
+    """The result of the ended Ray task ``done`` of ``cell``."""
+    try:
+        return ray.get(done)
+    except ray.exceptions.RayError as err:  # a crashed worker process or a lost node
+        head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
+        return _failed(cell, head, f"Ray ({type(err).__name__})", cell.folder / "train.log")
 
 
 BACKENDS.update(local=_local, ray=_ray)

@@ -3,6 +3,7 @@ folder, one table with the mean and 95 % interval over seeds, done cells skipped
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -275,3 +276,40 @@ def test_sigterm_to_a_sweep_ends_its_training_too_and_a_rerun_resumes_it(tmp_pat
     assert result["run"] == str(stopped) and result["resumed"] == saved and result["summary"]["episodes"] == 2
     assert checkpoints(stopped)[-1].name == "model_299.pt" and (stopped / "policy.pt").is_file()
     assert yaml.safe_load((stopped / "config.yaml").read_text())["run"]["resumes"] == [[f"resume={stopped}"]]
+
+
+def _processes_naming(text: str) -> list[int]:
+    """Processes whose command line holds ``text``."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        with contextlib.suppress(OSError):
+            if proc.name.isdigit() and text in (proc / "cmdline").read_bytes().decode(errors="replace"):
+                found.append(int(proc.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads processes from /proc")
+def test_sigterm_to_a_ray_sweep_lets_its_training_save(tmp_path) -> None:
+    """With ``backend=ray`` the sweep cancels its Ray tasks on SIGTERM; each passes it on to its
+    training, which saves a checkpoint, and the sweep exits with 143 once they have ended."""
+    pytest.importorskip("ray")
+    argv = ["sweep", *(a for a in TINY if not a.startswith("train.iterations")), "train.iterations=300", "seeds=0",
+            "backend=ray", f"out={tmp_path}"]
+    sweep_ = subprocess.Popen([sys.executable, "-m", "mjnav", *argv], cwd=Path(__file__).parents[2],
+                              stderr=subprocess.PIPE, text=True)
+    log = tmp_path / "seed-0" / "train.log"
+    try:
+        deadline = time.monotonic() + 120
+        while "[stage1] it " not in (log.read_text() if log.is_file() else "") and time.monotonic() < deadline:
+            time.sleep(0.2)
+        sweep_.terminate()
+        assert sweep_.wait(timeout=90) == 143
+    finally:
+        sweep_.kill()
+        for pid in _processes_naming(str(tmp_path)):  # not to leave a training running if this fails
+            os.kill(pid, signal.SIGKILL)
+    assert "SIGTERM: stopping 1 cell(s)" in sweep_.stderr.read()
+    assert "saved " in log.read_text()
+    (stopped,) = [p for p in (tmp_path / "seed-0").iterdir() if p.is_dir()]
+    assert checkpoints(stopped) and not (stopped / "policy.pt").exists()
+    assert _processes_naming(str(tmp_path)) == []
