@@ -41,7 +41,7 @@ from rsl_rl.utils.log_writer import LogWriter
 from torch.utils.tensorboard import SummaryWriter
 
 from mjnav.envs.gym_env import make_gym_env
-from mjnav.envs.vec_env import NavVecEnv
+from mjnav.envs.vec_env import EnvError, NavVecEnv
 from mjnav.train import distributed
 from mjnav.train.config import TrainConfig
 from mjnav.train.ppo import PipelinedPPO
@@ -212,6 +212,7 @@ def build_runner(
         runner.logger.process_env_step = runner.alg.deferring(runner.logger.process_env_step)
     _thread_the_update(runner, train.update_threads or distributed.rank_cores(ranks))
     _warm_up_critic(runner, train.critic_warmup)
+    _count_updates(runner)
     if ranks.distributed:
         _agree_on_stops(runner, ranks)
     _atomic_saves(runner)
@@ -261,10 +262,9 @@ def _warm_up_critic(runner: OnPolicyRunner, iterations: int) -> None:
 
     With ``requires_grad`` off the actor's parameters get no gradient, and the optimiser skips
     parameters without one, so only the critic moves; the surrogate and entropy terms are then
-    constants of the loss. :func:`learn` sets the number of the next iteration. Wraps the
-    runner's ``alg.update`` on the instance, as :func:`_thread_the_update` does.
+    constants of the loss. Reads the number of the iteration from :func:`_count_updates`. Wraps
+    the runner's ``alg.update`` on the instance, as :func:`_thread_the_update` does.
     """
-    runner.mjnav_iteration = 0  # type: ignore[attr-defined]
     if iterations <= 0:
         return
     update = runner.alg.update
@@ -272,7 +272,6 @@ def _warm_up_critic(runner: OnPolicyRunner, iterations: int) -> None:
     @functools.wraps(update)
     def update_with_warmup(*args: Any, **kwargs: Any) -> Any:
         iteration = runner.mjnav_iteration
-        runner.mjnav_iteration = iteration + 1
         if iteration >= iterations:
             return update(*args, **kwargs)
         actor = list(runner.alg.actor.parameters())
@@ -285,6 +284,22 @@ def _warm_up_critic(runner: OnPolicyRunner, iterations: int) -> None:
                 p.requires_grad_(True)
 
     runner.alg.update = update_with_warmup
+
+
+def _count_updates(runner: OnPolicyRunner) -> None:
+    """Keep ``runner.mjnav_iteration``, the number of the iteration whose update comes next: one more
+    after each update that ends (:func:`learn` sets it at each call). rsl-rl's own counter does not
+    tell "no iteration done in this call" from "the first one done". Wraps ``alg.update``."""
+    runner.mjnav_iteration = 0  # type: ignore[attr-defined]
+    update = runner.alg.update
+
+    @functools.wraps(update)
+    def counted_update(*args: Any, **kwargs: Any) -> Any:
+        result = update(*args, **kwargs)
+        runner.mjnav_iteration += 1  # type: ignore[attr-defined]
+        return result
+
+    runner.alg.update = counted_update
 
 
 def _agree_on_stops(runner: OnPolicyRunner, ranks: distributed.Ranks) -> None:
@@ -320,6 +335,8 @@ def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool 
     Raises:
         TrainingInterrupted: A stop was requested (see :func:`handle_interrupts`) and honoured after
             a completed iteration; the weights are not saved yet (:func:`save_checkpoint`).
+        EnvError: An environment or its worker failed; ``current_learning_iteration`` is then the
+            iteration after the last completed one, so :func:`save_checkpoint` can keep its weights.
     """
     runner.logger.cfg["logger"]["start_iteration"] = runner.current_learning_iteration
     runner.mjnav_iteration = runner.current_learning_iteration  # type: ignore[attr-defined]
@@ -330,6 +347,9 @@ def learn(runner: OnPolicyRunner, iterations: int, random_initial_lengths: bool 
             runner.learn(iterations, init_at_random_ep_len=random_initial_lengths)
     except TrainingInterrupted as stop:
         runner.current_learning_iteration = stop.iteration + 1
+        raise
+    except EnvError:
+        runner.current_learning_iteration = runner.mjnav_iteration  # type: ignore[attr-defined]
         raise
     runner.current_learning_iteration += 1
 

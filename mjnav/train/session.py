@@ -32,6 +32,7 @@ from mjnav import shipped
 from mjnav.args import Grammar, parse
 from mjnav.jobs import unique_stamp
 from mjnav.config import TASK_SECTIONS, TaskConfig
+from mjnav.envs.vec_env import EnvError
 from mjnav.policy import training_overrides
 from mjnav.schema import ConfigError, apply_overrides, from_dict, to_dict
 from mjnav.stages import stage_numbers
@@ -417,7 +418,12 @@ def _run_rank(plan: RunPlan, make_env: Callable[..., Any], main: bool) -> Path:
 
 
 def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
-    """Train to the end (True) or until interrupted, saving a checkpoint first (False)."""
+    """Train to the end (True) or until interrupted, saving a checkpoint first (False).
+
+    Raises:
+        EnvError: An environment or its worker failed; the weights of the last completed iteration
+            were saved first (when one was completed), so ``resume=`` goes on from there.
+    """
     train = plan.train
     with handle_interrupts():
         try:
@@ -434,6 +440,14 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
                 print(f"saved {path}\ncontinue with: {resume_command(plan.run_dir, distributed.current())}",
                       flush=True)
             return False
+        except EnvError:  # the weights of the iterations done since the last checkpoint are kept
+            if runner.current_learning_iteration > 0:
+                path = save_checkpoint(runner, plan.run_dir)
+                if distributed.current().main:
+                    print(f"an environment failed (below); saved {path}, the last completed iteration\n"
+                          f"continue with: {resume_command(plan.run_dir, distributed.current())}",
+                          file=sys.stderr, flush=True)
+            raise
     return True
 
 

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import signal
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -15,7 +18,7 @@ from rsl_rl.algorithms import PPO
 from rsl_rl.runners import OnPolicyRunner
 
 from mjnav.config import load_task
-from mjnav.envs.vec_env import NavVecEnv
+from mjnav.envs.vec_env import EnvError, NavVecEnv
 from mjnav.schema import ConfigError
 from mjnav.train import curriculum, session
 from mjnav.train.config import TrainConfig, load_train
@@ -409,6 +412,54 @@ def test_session_fresh_resume_and_curriculum(tmp_path: Path, monkeypatch: pytest
     assert (run_dir / "policy.pt").exists()
 
 
+def _stub_tasks(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(curriculum, "load_stage", lambda name, overrides: StubTask(name))
+    monkeypatch.setattr(session, "_task_from_dict", lambda data, overrides: StubTask(data["name"]))
+
+
+def _dying_worker_env(after_steps: int):
+    """A ``make_env`` whose adapter has one worker process, SIGKILLed at step ``after_steps``."""
+    def make(task: object, train: TrainConfig, seed: int | None = None, num_envs: int | None = None) -> NavVecEnv:
+        env = NavVecEnv(fake_env_fn, train.num_envs, seed=train.seed, workers=2, max_episode_length=12)
+        step, calls = env.step, []
+
+        def step_then_die(actions: torch.Tensor) -> tuple:
+            calls.append(1)
+            if len(calls) == after_steps:
+                os.kill(env._handles[0].process.pid, signal.SIGKILL)
+            return step(actions)
+
+        env.step = step_then_die
+        return env
+    return make
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGKILL")
+def test_a_dead_worker_ends_training_with_the_last_iteration_saved(tmp_path, monkeypatch, capsys) -> None:
+    """A worker killed in iteration 3 (0-based) ends the run with EnvError, after saving the weights of
+    iteration 2 (not only the periodic checkpoint of iteration 0); resume goes on from there."""
+    _stub_tasks(monkeypatch)
+    argv = ["task=fake", "train.iterations=6", f"out={tmp_path}", *(f"train.{o}" for o in TINY),
+            "train.save_interval=50"]
+    with pytest.raises(EnvError, match=r"worker 1 .*died \(exit code -9\)"):
+        session.run(argv, make_env=_dying_worker_env(after_steps=3 * 8 + 2))
+    (run_dir,) = tmp_path.iterdir()
+    assert [p.name for p in checkpoints(run_dir)] == ["model_0.pt", "model_2.pt"]
+    assert torch.load(run_dir / "model_2.pt", weights_only=False)["iter"] == 2
+    assert f"saved {run_dir / 'model_2.pt'}" in capsys.readouterr().err
+    session.run([f"resume={run_dir}"], make_env=make_fake_env)
+    assert checkpoints(run_dir)[-1].name == "model_5.pt" and (run_dir / "policy.pt").exists()
+
+
+def test_a_worker_dead_before_the_first_update_saves_nothing(tmp_path, monkeypatch) -> None:
+    _stub_tasks(monkeypatch)
+    argv = ["task=fake", "train.iterations=6", f"out={tmp_path}", *(f"train.{o}" for o in TINY)]
+    with pytest.raises(EnvError):
+        session.run(argv, make_env=_dying_worker_env(after_steps=3))
+    (run_dir,) = tmp_path.iterdir()
+    assert checkpoints(run_dir) == []
+
+
 def test_main_command_starts_from_the_shipped_previous_stage_or_walks_the_curriculum(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """``task=stage6`` alone: the shipped stage-5 policy's weights with its recipe (task overrides, PPO
@@ -479,3 +530,15 @@ def test_main_envs_that_leave_a_worker_nothing_is_a_config_error() -> None:
     load_train(["num_envs=4", "workers=3", "main_envs=2"])
     with pytest.raises(ConfigError, match="main_envs must be in"):
         NavVecEnv(fake_env_fn, num_envs=4, seed=0, workers=3, main_envs=3)
+
+
+def test_the_train_verb_says_a_failed_environment_in_one_error_line(monkeypatch, capsys) -> None:
+    from mjnav.cli import main
+    from mjnav.verbs import train as train_verb
+
+    def fail(argv: list[str]) -> None:
+        raise EnvError("worker 1 (environments 2-3) died (exit code -9)")
+
+    monkeypatch.setattr(train_verb, "run_session", fail)
+    assert main(["train", "task=stage1"]) == 1
+    assert capsys.readouterr().err == "error: worker 1 (environments 2-3) died (exit code -9)\n"
