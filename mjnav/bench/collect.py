@@ -16,7 +16,7 @@ Prints, with medians over rounds:
   worker and to the single environment;
 * where one rollout step (all environments) goes, ms: the trainer's policy inference
   (``alg.act``; with the pipeline also the dispatch of the actions and the previous step's
-  storage), then inside ``env.step`` this process's own block, its wait for the worker
+  storage and logger, so that the storage and logger columns then hold only their hand-over), then inside ``env.step`` this process's own block, its wait for the worker
   processes, the transfers through the shared buffers and the adapter's bookkeeping, then the
   PPO storage (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed
   inside the worker processes, their mean and longest step and the share of the step they are
@@ -75,7 +75,7 @@ class CollectOptions:
         pipeline: ``train.pipeline`` settings to compare, comma-separated (``true,false``): the
             trainer dispatches each step's actions before its value estimates and storage, or
             keeps rsl-rl's order; with ``true`` the policy part holds the dispatch and the previous
-            step's storage as well (:mod:`mjnav.train.ppo`).
+            step's storage and logger as well (:mod:`mjnav.train.ppo`).
         rounds: Interleaved timing rounds (one PPO iteration of every configuration per round).
         single_steps: Random-action steps of the single environment per round.
     """
