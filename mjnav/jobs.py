@@ -2,8 +2,9 @@
 
 A process of a job array (SLURM, Ray, a shell loop) may start in the same second as its siblings,
 on the same shared file system, with fewer CPUs than the machine has. Worker counts therefore come
-from the CPU affinity mask (:func:`usable_cores`), and folders named by time carry a suffix unique
-to the process (:func:`unique_stamp`).
+from the CPU affinity mask (:func:`usable_cores`), folders named by time carry a suffix unique
+to the process (:func:`unique_stamp`), and a process that writes a folder holds a lock on it that
+others can test (:func:`holding`, :func:`holder`).
 
 This module is a bottom layer: it imports nothing from mjnav.
 """
@@ -12,16 +13,20 @@ from __future__ import annotations
 
 import contextlib
 import os
+from pathlib import Path
 import secrets
 import socket
 import time
 from collections.abc import Iterator
 from typing import Any
 
-__all__ = ["ARRAY_TASK_ENV", "check_reachable", "joined_ray", "unique_stamp", "usable_cores"]
+__all__ = ["ARRAY_TASK_ENV", "LOCK_FILE", "check_reachable", "holder", "holding", "joined_ray", "unique_stamp",
+           "usable_cores"]
 
 #: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
 ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
+#: The lock file a process writing a folder holds (:func:`holding`); it holds its pid.
+LOCK_FILE = ".lock"
 #: The stamps this process has handed out (two calls in one second differ too).
 _ISSUED: set[str] = set()
 
@@ -98,3 +103,47 @@ def joined_ray(ray: Any, address: str | None, num_cpus: int) -> Iterator[None]:
     finally:
         if started:
             ray.shutdown()
+
+
+@contextlib.contextmanager
+def holding(folder: str | os.PathLike[str]) -> Iterator[None]:
+    """Hold ``folder``'s lock (an ``flock`` on ``folder/.lock``, holding this pid) while inside.
+
+    The operating system drops the lock when the process ends, however it ends (SIGKILL too), so a
+    held lock means a live writer. Without ``fcntl`` (Windows) nothing is locked.
+
+    Raises:
+        BlockingIOError: Another process holds it (:func:`holder` names it).
+    """
+    try:
+        import fcntl
+    except ImportError:  # no flock: nothing to hold
+        yield
+        return
+    with open(Path(folder) / LOCK_FILE, "a+", encoding="utf-8") as f:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        try:
+            f.truncate(0)
+            f.write(f"{os.getpid()}\n")
+            f.flush()
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def holder(folder: str | os.PathLike[str]) -> str | None:
+    """The pid (as the lock file holds it) of the live process holding ``folder``'s lock, else None."""
+    path = Path(folder) / LOCK_FILE
+    try:
+        import fcntl
+    except ImportError:
+        return None
+    if not path.is_file():
+        return None
+    with open(path, "r+", encoding="utf-8") as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return f.read().strip() or "?"
+        fcntl.flock(f, fcntl.LOCK_UN)
+    return None

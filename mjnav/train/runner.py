@@ -221,7 +221,7 @@ def build_runner(
 
 
 def _atomic_saves(runner: OnPolicyRunner) -> None:
-    """Make every checkpoint write atomic: rsl-rl writes ``<path>.partial``, which then replaces
+    """Make every checkpoint write atomic: rsl-rl writes ``<path>.<pid>.partial``, which then replaces
     ``<path>`` in one rename, so a run killed mid-write (SIGKILL, power) leaves the previous
     checkpoints intact and never a truncated ``model_<it>.pt`` (:func:`checkpoints` ignores the
     ``.partial`` file). Wraps ``runner.save`` on the instance, as for the update."""
@@ -229,7 +229,7 @@ def _atomic_saves(runner: OnPolicyRunner) -> None:
 
     @functools.wraps(save)
     def atomic_save(path: str, *args: Any, **kwargs: Any) -> None:
-        partial = f"{path}.partial"
+        partial = f"{path}.{os.getpid()}.partial"  # two ranks saving at once write apart
         save(partial, *args, **kwargs)
         os.replace(partial, path)
 
@@ -445,12 +445,13 @@ def widen_columns(state: dict[str, Any], at: int, extra: int) -> dict[str, Any]:
     return out
 
 
-def save_checkpoint(runner: OnPolicyRunner, run_dir: str | Path) -> Path:
+def save_checkpoint(runner: OnPolicyRunner, run_dir: str | Path, this_rank: bool = False) -> Path:
     """Save ``model_<last completed iteration>.pt`` into ``run_dir`` (between :func:`learn` calls);
-    under torchrun rank 0 saves and the other ranks only return the path."""
+    under torchrun rank 0 saves and the other ranks only return the path, unless ``this_rank``
+    (a rank that failed alone: the ranks hold the same weights after every update)."""
     last = runner.current_learning_iteration - 1
     path = Path(run_dir) / f"model_{last}.pt"
-    if not distributed.current().main:
+    if not (this_rank or distributed.current().main):
         return path
     runner.current_learning_iteration = last  # checkpoints store the last completed iteration
     try:

@@ -6,9 +6,10 @@ as ``train.seed=``), in the grammar of :mod:`mjnav.args`; ``mjnav train --help``
 Each run writes ``<out>/<task>-<YYYYmmdd-HHMMSS>-<pid>-<4 hex>/`` (:func:`mjnav.jobs.unique_stamp`: runs
 of a job array started in the same second never share a folder): ``config.yaml`` (resolved task and train
 configs), TensorBoard events, ``model_<it>.pt`` checkpoints, ``curriculum.yaml`` (curriculum
-runs) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx is installed) and
-``checkpoint_weights.pt`` (actor with its std and critic, no optimizer state: ~2.3 MB, what a
-shipped policy adds besides its actor; ``init=`` and ``start=auto`` take it).
+runs), ``.lock`` (held by the process training into the folder: a ``resume=`` of a run still
+training is refused) and, at the end, ``policy.pt`` (TorchScript actor; ``policy.onnx`` when onnx
+is installed) and ``checkpoint_weights.pt`` (actor with its std and critic, no optimizer state:
+~2.3 MB, what a shipped policy adds besides its actor; ``init=`` and ``start=auto`` take it).
 
 Under ``torchrun --nproc_per_node=N`` the session trains one policy data-parallel over N processes
 (:mod:`mjnav.train.distributed`): ``train.num_envs`` environments per rank, rank 0 writing the run
@@ -17,11 +18,13 @@ folder (the same files), every rank loading the checkpoint on ``resume=``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
+import os
 import shlex
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +33,7 @@ import yaml
 
 from mjnav import shipped
 from mjnav.args import Grammar, parse
-from mjnav.jobs import unique_stamp
+from mjnav.jobs import holder, holding, unique_stamp
 from mjnav.config import TASK_SECTIONS, TaskConfig
 from mjnav.envs.vec_env import EnvError
 from mjnav.policy import training_overrides
@@ -304,6 +307,9 @@ def _plan_resume(args: RunArgs) -> RunPlan:
     run_dir = Path(args.resume)  # type: ignore[arg-type]
     if not (run_dir / "config.yaml").is_file():
         raise ConfigError(f"resume: {str(run_dir)!r} is not a run folder (no config.yaml)")
+    if (pid := holder(run_dir)) is not None:
+        raise ConfigError(f"resume: {run_dir} is being trained by another process (pid {pid}); "
+                          "wait for it to end or stop it first")
     saved = yaml.safe_load((run_dir / "config.yaml").read_text())
     train = load_train(list(args.train_overrides), base=from_dict(TrainConfig, saved["train"]))
     overrides = list(saved["run"]["task_overrides"]) + list(args.task_overrides)
@@ -364,7 +370,9 @@ def _write_config(plan: RunPlan, argv: Sequence[str]) -> None:
         "task": to_dict(plan.task),
         "train": to_dict(plan.train),
     }
-    (plan.run_dir / "config.yaml").write_text(yaml.safe_dump(record, sort_keys=False))
+    partial = plan.run_dir / "config.yaml.partial"  # a kill while writing leaves the old file whole
+    partial.write_text(yaml.safe_dump(record, sort_keys=False))
+    os.replace(partial, path)
 
 
 def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Path:
@@ -381,10 +389,27 @@ def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Pat
     check_device(distributed.rank_device(plan.train.device, distributed.ranks_from_env()))
     with distributed.process_group(plan.train.device) as ranks:
         plan.run_dir = distributed.share(plan.run_dir)
-        if ranks.main:
-            _write_config(plan, argv)
-        plan.train = dataclasses.replace(plan.train, device=distributed.rank_device(plan.train.device, ranks))
-        return _run_rank(plan, make_env, ranks.main)
+        with _writing(plan.run_dir) if ranks.main else contextlib.nullcontext():
+            if ranks.main:
+                _write_config(plan, argv)
+            plan.train = dataclasses.replace(plan.train, device=distributed.rank_device(plan.train.device, ranks))
+            return _run_rank(plan, make_env, ranks.main)
+
+
+@contextlib.contextmanager
+def _writing(run_dir: Path) -> Iterator[None]:
+    """Hold the run folder's lock (:func:`mjnav.jobs.holding`) while training into it.
+
+    Raises:
+        ConfigError: Another live process holds it (a ``resume=`` of a run that is still training).
+    """
+    run_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        with holding(run_dir):
+            yield
+    except BlockingIOError:
+        raise ConfigError(f"resume: {run_dir} is being trained by another process (pid {holder(run_dir)}); "
+                          "wait for it to end or stop it first") from None
 
 
 def _run_rank(plan: RunPlan, make_env: Callable[..., Any], main: bool) -> Path:
@@ -422,7 +447,8 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
 
     Raises:
         EnvError: An environment or its worker failed; the weights of the last completed iteration
-            were saved first (when one was completed), so ``resume=`` goes on from there.
+            were saved first (when one was completed), so ``resume=`` goes on from there. Under
+            torchrun the failing rank saves them; the other ranks then fail in their next all-reduce.
     """
     train = plan.train
     with handle_interrupts():
@@ -441,12 +467,11 @@ def _train(runner: Any, plan: RunPlan, make_env: Callable[..., Any]) -> bool:
                       flush=True)
             return False
         except EnvError:  # the weights of the iterations done since the last checkpoint are kept
-            if runner.current_learning_iteration > 0:
-                path = save_checkpoint(runner, plan.run_dir)
-                if distributed.current().main:
-                    print(f"an environment failed (below); saved {path}, the last completed iteration\n"
-                          f"continue with: {resume_command(plan.run_dir, distributed.current())}",
-                          file=sys.stderr, flush=True)
+            if runner.current_learning_iteration > 0:  # by this rank: the others do not know of it
+                path = save_checkpoint(runner, plan.run_dir, this_rank=True)
+                print(f"an environment failed (below); saved {path}, the last completed iteration\n"
+                      f"continue with: {resume_command(plan.run_dir, distributed.current())}",
+                      file=sys.stderr, flush=True)
             raise
     return True
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -22,6 +23,7 @@ import yaml
 
 from mjnav.schema import ConfigError
 from mjnav.train import distributed
+from mjnav.train.runner import checkpoints
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = [
@@ -71,14 +73,41 @@ def _record_updates() -> None:
     session.build_runner = build_and_record
 
 
-def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1,
-              nodes: int = 1) -> subprocess.CompletedProcess[str]:
+def _kill_a_worker_on_the_last_rank() -> None:
+    """With ``$MJNAV_TEST_KILL_AT=K`` the last rank SIGKILLs its first env worker process at its step K."""
+    from mjnav.train import session
+    from mjnav.train.runner import make_vec_env
+    from mjnav.verbs import train as train_verb
+
+    kill_at = int(os.environ.get("MJNAV_TEST_KILL_AT", "-1"))
+    if kill_at < 0 or os.environ.get("RANK") != str(int(os.environ.get("WORLD_SIZE", "1")) - 1):
+        return
+
+    def dying(*args: Any, **kwargs: Any) -> Any:
+        env = make_vec_env(*args, **kwargs)
+        step, calls = env.step, []
+
+        def step_then_kill(actions: torch.Tensor) -> Any:
+            calls.append(1)
+            if len(calls) == kill_at:
+                os.kill(env._handles[0].process.pid, signal.SIGKILL)
+            return step(actions)
+
+        env.step = step_then_kill
+        return env
+
+    train_verb.run_session = lambda argv: session.run(argv, make_env=dying)
+
+
+def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1, nodes: int = 1,
+              kill_at: int = -1, check: bool = True) -> subprocess.CompletedProcess[str]:
     """Train this file's ``__main__`` under torchrun with ``ranks`` CPU processes (the last rank asks
-    to stop before update ``stop_at``): ``torchrun --standalone``, or with ``nodes`` > 1 that many
-    torchrun agents of ``ranks`` processes each, meeting by c10d rendezvous on loopback as the nodes
-    of a cluster do; returns the first agent's process (the others must succeed too)."""
+    to stop before update ``stop_at``, or kills a worker at step ``kill_at``): ``torchrun --standalone``,
+    or with ``nodes`` > 1 that many torchrun agents of ``ranks`` processes each, meeting by c10d
+    rendezvous on loopback as the nodes of a cluster do; returns the first agent's process (with
+    ``check``, every agent must succeed)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MJNAV_TEST_DIGESTS": str(digests), "OMP_NUM_THREADS": "1",
-           "MJNAV_TEST_STOP_AT": str(stop_at)}
+           "MJNAV_TEST_STOP_AT": str(stop_at), "MJNAV_TEST_KILL_AT": str(kill_at)}
     launch = ["--standalone"]
     if nodes > 1:
         with socket.socket() as s:
@@ -100,8 +129,8 @@ def _torchrun(args: list[str], digests: Path, ranks: int = 2, stop_at: int = -1,
             agent.kill()
     outputs = [(out.read_text(), err.read_text()) for out, err in logs]
     for agent, (out, err) in zip(agents, outputs):
-        assert agent.returncode == 0, out[-3000:] + err[-3000:]
-    return subprocess.CompletedProcess(command, 0, *outputs[0])
+        assert agent.returncode == 0 or not check, out[-3000:] + err[-3000:]
+    return subprocess.CompletedProcess(command, agents[0].returncode, *outputs[0])
 
 
 def _lines(digests: Path, rank: int) -> list[list[str]]:
@@ -159,6 +188,19 @@ def test_resume_loads_the_checkpoint_on_every_rank_and_a_stop_on_one_rank_stops_
     assert yaml.safe_load((run_dir / "config.yaml").read_text())["run"]["ranks"] == [2, 2]
 
 
+def test_a_worker_dead_on_another_rank_is_saved_by_that_rank(tmp_path):
+    """Rank 1's env worker dies in iteration 3: rank 1 saves the weights of iteration 2 (the ranks
+    hold the same ones) into the shared run folder and the launch fails; rank 0 knew nothing of it."""
+    out = tmp_path / "runs"
+    done = _torchrun([*TINY, "train.workers=2", "train.iterations=6", "train.save_interval=50", f"out={out}"],
+                     tmp_path, kill_at=3 * 4 + 2, check=False)
+    assert done.returncode != 0
+    (run_dir,) = out.iterdir()
+    assert [p.name for p in checkpoints(run_dir)] == ["model_0.pt", "model_2.pt"]
+    assert torch.load(run_dir / "model_2.pt", weights_only=False)["iter"] == 2
+    assert f"saved {run_dir / 'model_2.pt'}" in done.stderr and "died (exit code -9)" in done.stderr
+
+
 def test_two_nodes_meet_by_rendezvous_and_train_as_one(tmp_path):
     """The README's multi-node launch on loopback: two torchrun agents of one process each (c10d
     rendezvous) hold identical parameters after every update and write one run folder."""
@@ -196,6 +238,7 @@ if __name__ == "__main__":
     from mjnav.cli import main
 
     _record_updates()
+    _kill_a_worker_on_the_last_rank()
     sys.exit(main(["train", *sys.argv[1:]]))
 
 

@@ -542,3 +542,18 @@ def test_the_train_verb_says_a_failed_environment_in_one_error_line(monkeypatch,
     monkeypatch.setattr(train_verb, "run_session", fail)
     assert main(["train", "task=stage1"]) == 1
     assert capsys.readouterr().err == "error: worker 1 (environments 2-3) died (exit code -9)\n"
+
+
+def test_a_run_still_training_is_not_resumed_twice(tmp_path, monkeypatch) -> None:
+    """The training process holds its run folder's lock; a ``resume=`` of that folder meanwhile is
+    refused before anything starts, and goes on once the lock is free."""
+    from mjnav.jobs import holding
+
+    _stub_tasks(monkeypatch)
+    run_dir = session.run(["task=fake", "train.iterations=1", f"out={tmp_path}", *(f"train.{o}" for o in TINY)],
+                          make_env=make_fake_env)
+    with holding(run_dir), pytest.raises(ConfigError, match=f"{run_dir} is being trained by another process"):
+        session.run([f"resume={run_dir}", "train.iterations=2"], make_env=make_fake_env)
+    session.run([f"resume={run_dir}", "train.iterations=2"], make_env=make_fake_env)
+    assert checkpoints(run_dir)[-1].name == "model_1.pt"
+    assert not list(run_dir.glob("*.partial"))  # config.yaml and checkpoints are written whole, then renamed
