@@ -12,10 +12,11 @@ then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen 
 ``out``), the sweep skips a cell whose ``result.json`` has the same arguments, evaluates without
 training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
 for more episodes), resumes a training that was stopped (``mjnav train resume=`` from its newest
-``model_<it>.pt``; ``resumed`` in its result) and refuses, before running anything, a folder whose run
-was trained with other arguments. A failed cell writes ``failed.json`` with its log, the rest go on,
-and the sweep exits with 1. ``sweep.md`` and ``sweep.json`` are the table of the grid of the last
-call. With either backend, SIGTERM to the sweep is passed on to the running trainings or evaluations
+``model_<it>.pt``; ``resumed`` in its result), leaves out a cell whose training another live process
+is running (another sweep on the same ``out``: its ``.lock``) and refuses, before running anything, a
+folder whose run was trained with other arguments. A failed cell writes ``failed.json`` with its log,
+the rest go on, and the sweep exits with 1 (so it does when a cell was left out). ``sweep.md`` and
+``sweep.json`` are the table of the grid of the last call. With either backend, SIGTERM to the sweep is passed on to the running trainings or evaluations
 (which save and end), then the sweep exits with 143; started again, it goes on.
 
 Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
@@ -48,7 +49,7 @@ import yaml
 
 from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
-from mjnav.jobs import joined_ray, usable_cores
+from mjnav.jobs import holder, joined_ray, usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = ["HEADLINE", "Cell", "SweepOptions", "arguments", "cells", "check_recorded", "grammar", "run", "run_cell",
@@ -249,19 +250,18 @@ def _passing_sigterm_to(child: subprocess.Popen) -> Iterator[list[bool]]:
 
 @contextlib.contextmanager
 def _on_sigterm(action: Callable[[], None]) -> Iterator[list[bool]]:
-    """While inside, SIGTERM calls ``action`` and is noted in the list yielded (empty until then); a
-    second one exits at once (``SystemExit`` 143). Outside the main thread (no signals there): nothing."""
+    """While inside, the first SIGTERM calls ``action``; each is noted in the list yielded (empty
+    until then). Outside the main thread (no signals there): nothing."""
     stopped: list[bool] = []
     if threading.current_thread() is not threading.main_thread():  # signals reach only the main thread
         yield stopped
         return
 
     def on_sigterm(signum: int, frame: Any) -> None:
-        del frame
-        if stopped:
-            raise SystemExit(128 + signum)
+        del signum, frame
         stopped.append(True)
-        action()
+        if len(stopped) == 1:
+            action()
 
     previous = signal.signal(signal.SIGTERM, on_sigterm)
     try:
@@ -290,10 +290,31 @@ def _interrupted(folder: Path) -> Path | None:
     return max(runs, key=lambda p: p.stat().st_mtime) if runs else None
 
 
+def _training(folder: Path) -> tuple[Path, str] | None:
+    """A run folder under a cell's folder that a live process is training into, and its pid."""
+    if not folder.is_dir():
+        return None
+    for run_dir in folder.iterdir():
+        if run_dir.is_dir() and (pid := holder(run_dir)) is not None:
+            return run_dir, pid
+    return None
+
+
 def _launched_with(run_dir: Path) -> list[str]:
-    """The ``mjnav train`` arguments a run folder was started with (its ``config.yaml``), ``out=`` left out."""
-    saved = yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8"))
-    return [a for a in saved["run"].get("argv", []) if not a.startswith("out=")]
+    """The ``mjnav train`` arguments a run folder was started with (its ``config.yaml``), ``out=`` left out.
+
+    Raises:
+        ConfigError: The file cannot be read or holds no ``run.argv``.
+    """
+    path = run_dir / "config.yaml"
+    try:
+        argv = yaml.safe_load(path.read_text(encoding="utf-8"))["run"]["argv"]
+        if not isinstance(argv, list):
+            raise TypeError(f"run.argv is {type(argv).__name__}")
+    except (OSError, yaml.YAMLError, KeyError, TypeError) as err:
+        raise ConfigError(f"{path}: not a readable run record ({type(err).__name__}: {err}); the stopped run "
+                          "cannot be checked or resumed: move that run folder away") from None
+    return [str(a) for a in argv if not str(a).startswith("out=")]
 
 
 def _summary(path: Path) -> dict[str, Any]:
@@ -322,6 +343,8 @@ def _recorded(cell: Cell) -> dict[str, Any]:
         path = cell.folder / name
         if path.is_file():
             return {**json.loads(path.read_text(encoding="utf-8")), "file": name}
+    if (live := _training(cell.folder)) is not None:
+        return {"busy": f"{live[0]} is being trained by another process (pid {live[1]})"}
     stopped = _interrupted(cell.folder)
     if stopped is None:
         return {}
@@ -361,12 +384,15 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``train`` and
     ``evaluate`` (:func:`arguments`), ``run`` (run folder), ``summary`` (the evaluation's summary
     row), ``resumed`` (the checkpoint a stopped training went on from, when it did), or ``failed``
-    (which step) and ``log``; ``skipped`` (True) when it was read from an
-    earlier ``result.json``, ``unchecked`` (True) when that file predates the recorded arguments.
+    (which step) and ``log``, or ``busy`` (another process is training the cell; nothing done);
+    ``skipped`` (True) when it was read from an earlier ``result.json``, ``unchecked`` (True) when
+    that file predates the recorded arguments.
     NaN is written to ``result.json`` as null.
     """
     given, recorded = arguments(cell), _recorded(cell)
     head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **given}
+    if "busy" in recorded:  # another sweep (or a resume by hand) is training it: not counted here
+        return {**head, "busy": recorded["busy"]}
     if recorded.get("file") == "result.json" and recorded.get("evaluate", given["evaluate"]) == given["evaluate"]:
         if "summary" in recorded:  # null back to NaN, as _summary reads an empty cell
             recorded["summary"] = {k: math.nan if v is None else v for k, v in recorded["summary"].items()}
@@ -381,16 +407,18 @@ def run_cell(cell: Cell) -> dict[str, Any]:
         if run_dir is None:
             return _failed(cell, head, "train", cell.folder / "train.log")
         head.update(resumed)
+        went_on = bool(resumed)
         trained = {"train": given["train"], "run": str(run_dir), **resumed}
         (cell.folder / "trained.json").write_text(json.dumps(trained, indent=1) + "\n", encoding="utf-8")
     else:
         head.update({k: recorded[k] for k in ("resumed",) if k in recorded})
+        went_on = False
     log = cell.folder / "eval.log"
     if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
         return _failed(cell, head, "evaluate", log)
     result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
     (cell.folder / "result.json").write_text(json.dumps(_no_nan(result), indent=1) + "\n", encoding="utf-8")
-    return result
+    return {**result, "went_on": True} if went_on else result
 
 
 def _train(cell: Cell, stopped: Path | None) -> tuple[Path | None, dict[str, str]]:
@@ -445,30 +473,48 @@ def _ray_cells(ray: Any, todo: Sequence[Cell], cpus: int) -> Iterator[dict[str, 
     returns its own failures).
 
     SIGTERM cancels the tasks (``ray.cancel``: a running cell passes it on to its training, which
-    saves a checkpoint) and waits for them to end, then exits with 143; a second SIGTERM exits at
-    once. Ray's own handler (installed by ``ray.init``) would exit at once and lose the trainings'
-    progress since their last periodic checkpoint.
+    saves a checkpoint; a waiting one never starts) and waits for them to end, then exits with 143;
+    a second SIGTERM exits at once. Ray's own handler (installed by ``ray.init``) would exit at once
+    and lose the trainings' progress since their last periodic checkpoint.
     """
-    task = ray.remote(num_cpus=cpus, max_retries=0)(run_cell)
+    task = ray.remote(num_cpus=cpus, max_retries=0)(_cell_task)
     pending = {task.remote(cell): cell for cell in todo}
     with _on_sigterm(lambda: None) as stopped:
         while pending:
             if stopped:
-                _cancel(ray, pending)
+                _cancel(ray, pending, stopped)
                 raise SystemExit(128 + signal.SIGTERM)
             done, _ = ray.wait(list(pending), num_returns=1, timeout=0.5)
             if done:
                 yield _ray_result(ray, done[0], pending.pop(done[0]))
 
 
-def _cancel(ray: Any, pending: dict[Any, Cell]) -> None:
-    """Cancel the Ray tasks ``pending`` and wait until each has ended (its training saved)."""
-    print(f"sweep: SIGTERM: stopping {len(pending)} cell(s); their trainings save a checkpoint "
+def _cell_task(cell: Cell) -> dict[str, Any]:
+    """:func:`run_cell` as a Ray task, interruptible by ``ray.cancel``.
+
+    The cancel raises KeyboardInterrupt through Python's SIGINT machinery, which does nothing while
+    SIGINT is ignored, as it is in a process started in the background by a shell script
+    (``mjnav sweep ... &``) and in the Ray workers that inherit it. The task restores Python's
+    default handler for its run.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return run_cell(cell)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return run_cell(cell)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _cancel(ray: Any, pending: dict[Any, Cell], stopped: list[bool]) -> None:
+    """Cancel the Ray tasks ``pending`` and wait until each has ended (a running cell's training
+    saved); return early, after a second SIGTERM (``stopped`` grown)."""
+    print(f"sweep: SIGTERM: stopping {len(pending)} cell(s); a running cell's training saves a checkpoint "
           "(SIGTERM again: exit at once)", file=sys.stderr, flush=True)
     for ref in pending:
         ray.cancel(ref)
     refs = list(pending)
-    while refs:
+    while refs and len(stopped) == 1:
         _, refs = ray.wait(refs, num_returns=len(refs), timeout=0.5)
 
 
@@ -553,8 +599,10 @@ def run(parsed: Parsed, argv: list[str]) -> int:
         with contextlib.closing(BACKENDS[opts.backend](todo, opts)) as stream:
             for result in stream:
                 state = "done before (its result.json)" if result.pop("skipped", False) else "done"
-                if "resumed" in result and state == "done":
+                if result.pop("went_on", False):
                     state += f" (its stopped training went on from {result['resumed']})"
+                if "busy" in result:
+                    state = f"left out: {result['busy']}"
                 if result.pop("unchecked", False):
                     state += ", recorded without its arguments: not checked"
                 state = f"failed in {result['failed']} (see {result['log']})" if "failed" in result else state
@@ -572,4 +620,4 @@ def run(parsed: Parsed, argv: list[str]) -> int:
     (out / "sweep.json").write_text(json.dumps(_no_nan(record), indent=1) + "\n", encoding="utf-8")
     print(text, end="")
     print(f"wrote {out}/sweep.md and {out}/sweep.json")
-    return 1 if any("failed" in r for r in results) else 0
+    return 1 if any("failed" in r or "busy" in r for r in results) else 0

@@ -19,7 +19,7 @@ import yaml
 
 from mjnav.args import parse
 from mjnav.cli import main
-from mjnav.jobs import usable_cores
+from mjnav.jobs import holding, usable_cores
 from mjnav.train.runner import checkpoints
 from mjnav.verbs import sweep
 
@@ -214,6 +214,56 @@ def test_a_stopped_training_goes_on_from_its_checkpoint(tmp_path, monkeypatch, c
     assert result["run"] == str(run) and result["resumed"] == "model_40.pt"
     assert json.loads((first.folder / "trained.json").read_text())["resumed"] == "model_40.pt"
     assert "seed-1: done (its stopped training went on from model_40.pt)" in capsys.readouterr().err
+    calls.clear()
+    assert main([*argv, "episodes=300"]) == 0 and [c[0] for c in calls] == ["evaluate", "evaluate"]
+    said = capsys.readouterr().err
+    assert "seed-1: done\n" in said and "went on" not in said  # said once, when it went on
+    assert json.loads((first.folder / "result.json").read_text())["resumed"] == "model_40.pt"
+
+
+def test_a_cell_another_process_is_training_is_left_out(tmp_path, monkeypatch, capsys) -> None:
+    """A second sweep on the same ``out`` does not resume (or train again) a training that is still
+    running: the run folder's lock is held by a live process."""
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1,2", f"out={tmp_path}"]
+    first, _ = _cells(argv[1:])
+    run = _stopped_run(first, first.train, 50)
+    with holding(run):
+        assert main(argv) == 1
+    assert [c[0] for c in calls] == ["train", "evaluate"] and "seed=2" in calls[0]
+    assert f"seed-1: left out: {run} is being trained by another process (pid {os.getpid()})" in capsys.readouterr().err
+    assert not (first.folder / "failed.json").exists() and "| 2 |" in (tmp_path / "sweep.md").read_text()
+    calls.clear()
+    assert main(argv) == 0 and [c[:2] for c in calls[:1]] == [["train", f"resume={run}"]]  # once it has ended
+
+
+@pytest.mark.parametrize("text", ["", "run: {}\n", "run:\n  argv: 3\n"])
+def test_an_unreadable_stopped_run_is_one_error_line(tmp_path, monkeypatch, capsys, text) -> None:
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1", f"out={tmp_path}"]
+    (cell,) = _cells(argv[1:])
+    run = _stopped_run(cell, cell.train, 3)
+    (run / "config.yaml").write_text(text)  # a kill while it was written (before it was atomic)
+    assert main(argv) == 2 and calls == []
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {run / 'config.yaml'}: not a readable run record") and "move that run" in err
+
+
+def test_a_second_sigterm_stops_waiting_for_the_cancelled_ray_tasks() -> None:
+    waited: list[int] = []
+
+    class FakeRay:
+        def cancel(self, ref: object) -> None:
+            pass
+
+        def wait(self, refs: list, num_returns: int, timeout: float) -> tuple[list, list]:
+            waited.append(len(refs))
+            stopped.append(True)  # the second SIGTERM arrives while waiting
+            return [], refs
+
+    stopped = [True]
+    sweep._cancel(FakeRay(), {"a": None, "b": None}, stopped)
+    assert waited == [2]  # one slice, then it returned with the tasks still running
 
 
 def test_a_stopped_training_with_other_arguments_is_refused(tmp_path, monkeypatch, capsys) -> None:
@@ -291,12 +341,15 @@ def _processes_naming(text: str) -> list[int]:
 @pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads processes from /proc")
 def test_sigterm_to_a_ray_sweep_lets_its_training_save(tmp_path) -> None:
     """With ``backend=ray`` the sweep cancels its Ray tasks on SIGTERM; each passes it on to its
-    training, which saves a checkpoint, and the sweep exits with 143 once they have ended."""
+    training, which saves a checkpoint, and the sweep exits with 143 once they have ended. Started
+    with SIGINT ignored, as a shell script's background job is (the cancel's interrupt goes through
+    Python's SIGINT machinery)."""
     pytest.importorskip("ray")
     argv = ["sweep", *(a for a in TINY if not a.startswith("train.iterations")), "train.iterations=300", "seeds=0",
             "backend=ray", f"out={tmp_path}"]
     sweep_ = subprocess.Popen([sys.executable, "-m", "mjnav", *argv], cwd=Path(__file__).parents[2],
-                              stderr=subprocess.PIPE, text=True)
+                              stderr=subprocess.PIPE, text=True,  # as `mjnav sweep ... &` in a script starts it:
+                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))  # SIGINT ignored
     log = tmp_path / "seed-0" / "train.log"
     try:
         deadline = time.monotonic() + 120
