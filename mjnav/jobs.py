@@ -13,12 +13,17 @@ from __future__ import annotations
 
 import contextlib
 import os
-from pathlib import Path
 import secrets
 import socket
 import time
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock, so folders are not locked (holding() holds nothing)
+    fcntl = None  # type: ignore[assignment]
 
 __all__ = ["ARRAY_TASK_ENV", "LOCK_FILE", "check_reachable", "holder", "holding", "joined_ray", "unique_stamp",
            "usable_cores"]
@@ -115,9 +120,7 @@ def holding(folder: str | os.PathLike[str]) -> Iterator[None]:
     Raises:
         BlockingIOError: Another process holds it (:func:`holder` names it).
     """
-    try:
-        import fcntl
-    except ImportError:  # no flock: nothing to hold
+    if fcntl is None:
         yield
         return
     with open(Path(folder) / LOCK_FILE, "a+", encoding="utf-8") as f:
@@ -134,11 +137,7 @@ def holding(folder: str | os.PathLike[str]) -> Iterator[None]:
 def holder(folder: str | os.PathLike[str]) -> str | None:
     """The pid (as the lock file holds it) of the live process holding ``folder``'s lock, else None."""
     path = Path(folder) / LOCK_FILE
-    try:
-        import fcntl
-    except ImportError:
-        return None
-    if not path.is_file():
+    if fcntl is None or not path.is_file():
         return None
     with open(path, "r+", encoding="utf-8") as f:
         try:
