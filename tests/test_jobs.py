@@ -1,11 +1,14 @@
 """Job facts (:mod:`mjnav.jobs`): worker counts follow the CPU affinity mask, and folders named by
-time never collide between processes of a job array."""
+time never collide between processes of a job array, and a folder's writer holds a lock others see."""
 
 from __future__ import annotations
 
 import os
 import re
 import socket
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -95,3 +98,23 @@ def test_joined_ray_refuses_an_address_where_nothing_answers_before_ray_init() -
     with pytest.raises(ConnectionError, match="no Ray cluster answers"):
         with jobs.joined_ray(NoRay(), f"127.0.0.1:{port}", 1):
             pass
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="flock")
+def test_a_folder_lock_is_seen_by_others_and_dropped_when_its_holder_is_killed(tmp_path: Path) -> None:
+    """A live holder is named by its pid; a second holder is refused; SIGKILL frees the folder."""
+    holder_code = (f"from mjnav.jobs import holding\nwith holding({str(tmp_path)!r}):\n"
+                   " print('held', flush=True)\n input()")
+    child = subprocess.Popen([sys.executable, "-c", holder_code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True, cwd=Path(__file__).parents[1])
+    try:
+        assert child.stdout.readline() == "held\n"
+        assert jobs.holder(tmp_path) == str(child.pid)
+        with pytest.raises(BlockingIOError), jobs.holding(tmp_path):
+            pass
+    finally:
+        child.kill()
+        child.wait()
+    assert jobs.holder(tmp_path) is None  # SIGKILL: the system dropped it
+    with jobs.holding(tmp_path):
+        assert jobs.holder(tmp_path) == str(os.getpid())
