@@ -25,8 +25,8 @@ try:
 except ImportError:  # Windows: no flock, so folders are not locked (holding() holds nothing)
     fcntl = None  # type: ignore[assignment]
 
-__all__ = ["ARRAY_TASK_ENV", "LOCK_FILE", "check_reachable", "holder", "holding", "joined_ray", "unique_stamp",
-           "usable_cores"]
+__all__ = ["ARRAY_TASK_ENV", "LOCK_FILE", "FolderInUse", "check_reachable", "holder", "holding", "joined_ray",
+           "unique_stamp", "usable_cores"]
 
 #: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
 ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
@@ -110,21 +110,45 @@ def joined_ray(ray: Any, address: str | None, num_cpus: int) -> Iterator[None]:
             ray.shutdown()
 
 
+class FolderInUse(RuntimeError):
+    """Another live process holds a folder's lock (:func:`holding`).
+
+    Attributes:
+        folder: The folder.
+        pid: The holder's pid as its lock file says ("?" when it says nothing yet).
+    """
+
+    def __init__(self, folder: str | os.PathLike[str], pid: str) -> None:
+        """Name the folder and its holder."""
+        super().__init__(f"{folder} is in use by another process (pid {pid})")
+        self.folder, self.pid = Path(folder), pid
+
+
 @contextlib.contextmanager
-def holding(folder: str | os.PathLike[str]) -> Iterator[None]:
+def holding(folder: str | os.PathLike[str], patience_s: float = 1.0) -> Iterator[None]:
     """Hold ``folder``'s lock (an ``flock`` on ``folder/.lock``, holding this pid) while inside.
 
     The operating system drops the lock when the process ends, however it ends (SIGKILL too), so a
-    held lock means a live writer. Without ``fcntl`` (Windows) nothing is locked.
+    held lock means a live writer. A lock held only for a look (:func:`holder`, microseconds) is
+    waited out for up to ``patience_s`` seconds. Without ``fcntl`` (Windows) nothing is locked.
 
     Raises:
-        BlockingIOError: Another process holds it (:func:`holder` names it).
+        FolderInUse: Another process holds it (raised on entry only; errors inside pass as they are).
     """
     if fcntl is None:
         yield
         return
     with open(Path(folder) / LOCK_FILE, "a+", encoding="utf-8") as f:
-        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        deadline = time.monotonic() + patience_s
+        while True:
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    f.seek(0)
+                    raise FolderInUse(folder, f.read().strip() or "?") from None
+                time.sleep(0.02)
         try:
             f.truncate(0)
             f.write(f"{os.getpid()}\n")
@@ -135,11 +159,12 @@ def holding(folder: str | os.PathLike[str]) -> Iterator[None]:
 
 
 def holder(folder: str | os.PathLike[str]) -> str | None:
-    """The pid (as the lock file holds it) of the live process holding ``folder``'s lock, else None."""
+    """The pid (as the lock file holds it; "?" before it is written) of the live process holding
+    ``folder``'s lock, else None. Needs only read access to the folder."""
     path = Path(folder) / LOCK_FILE
     if fcntl is None or not path.is_file():
         return None
-    with open(path, "r+", encoding="utf-8") as f:
+    with open(path, encoding="utf-8") as f:
         try:
             fcntl.flock(f, fcntl.LOCK_SH | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -110,7 +110,7 @@ def test_a_folder_lock_is_seen_by_others_and_dropped_when_its_holder_is_killed(t
     try:
         assert child.stdout.readline() == "held\n"
         assert jobs.holder(tmp_path) == str(child.pid)
-        with pytest.raises(BlockingIOError), jobs.holding(tmp_path):
+        with pytest.raises(jobs.FolderInUse, match=f"pid {child.pid}"), jobs.holding(tmp_path, patience_s=0.1):
             pass
     finally:
         child.kill()
@@ -118,3 +118,24 @@ def test_a_folder_lock_is_seen_by_others_and_dropped_when_its_holder_is_killed(t
     assert jobs.holder(tmp_path) is None  # SIGKILL: the system dropped it
     with jobs.holding(tmp_path):
         assert jobs.holder(tmp_path) == str(os.getpid())
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="flock")
+def test_a_look_at_the_lock_does_not_refuse_a_writer_and_errors_inside_pass(tmp_path: Path, monkeypatch) -> None:
+    """:func:`holder` takes the lock shared for an instant; a writer starting then waits it out.
+    An error inside ``holding`` is not taken for a busy folder."""
+    import fcntl
+
+    flock, refused = fcntl.flock, [1]
+
+    def busy_once(f, how):  # the first try meets a look in progress
+        if refused and how & fcntl.LOCK_EX:
+            refused.pop()
+            raise BlockingIOError(11, "Resource temporarily unavailable")
+        return flock(f, how)
+
+    monkeypatch.setattr(fcntl, "flock", busy_once)
+    with pytest.raises(BlockingIOError, match="from inside"), jobs.holding(tmp_path):
+        assert refused == []
+        raise BlockingIOError("from inside")  # e.g. a fork that hit a process limit
+    assert jobs.holder(tmp_path) is None

@@ -33,7 +33,7 @@ import yaml
 
 from mjnav import shipped
 from mjnav.args import Grammar, parse
-from mjnav.jobs import holder, holding, unique_stamp
+from mjnav.jobs import FolderInUse, holder, holding, unique_stamp
 from mjnav.config import TASK_SECTIONS, TaskConfig
 from mjnav.envs.vec_env import EnvError
 from mjnav.policy import training_overrides
@@ -404,12 +404,13 @@ def _writing(run_dir: Path) -> Iterator[None]:
         ConfigError: Another live process holds it (a ``resume=`` of a run that is still training).
     """
     run_dir.mkdir(parents=True, exist_ok=True)
-    try:
-        with holding(run_dir):
-            yield
-    except BlockingIOError:
-        raise ConfigError(f"resume: {run_dir} is being trained by another process (pid {holder(run_dir)}); "
-                          "wait for it to end or stop it first") from None
+    with contextlib.ExitStack() as held:
+        try:
+            held.enter_context(holding(run_dir))
+        except FolderInUse as err:  # only the taking of the lock: the training's own errors pass as they are
+            raise ConfigError(f"resume: {run_dir} is being trained by another process (pid {err.pid}); "
+                              "wait for it to end or stop it first") from None
+        yield
 
 
 def _run_rank(plan: RunPlan, make_env: Callable[..., Any], main: bool) -> Path:

@@ -12,12 +12,14 @@ then ``<out>/<cell>/result.json``. Started again (resume after a kill, or widen 
 ``out``), the sweep skips a cell whose ``result.json`` has the same arguments, evaluates without
 training again a run that an earlier call trained (``trained.json``: killed while evaluating, or asked
 for more episodes), resumes a training that was stopped (``mjnav train resume=`` from its newest
-``model_<it>.pt``; ``resumed`` in its result), leaves out a cell whose training another live process
-is running (another sweep on the same ``out``: its ``.lock``) and refuses, before running anything, a
-folder whose run was trained with other arguments. A failed cell writes ``failed.json`` with its log,
-the rest go on, and the sweep exits with 1 (so it does when a cell was left out). ``sweep.md`` and
-``sweep.json`` are the table of the grid of the last call. With either backend, SIGTERM to the sweep is passed on to the running trainings or evaluations
-(which save and end), then the sweep exits with 143; started again, it goes on.
+``model_<it>.pt``; ``resumed`` in its result), leaves out a cell that another live process is
+running (a second sweep on the same ``out``: the cell folder's ``.lock``; or a ``resume=`` by hand:
+the run folder's) and refuses, before running anything, a folder whose run was trained with other
+arguments. A failed cell writes ``failed.json`` with its log, the rest go on, and the sweep exits
+with 1 (so it does when a cell was left out). ``sweep.md`` and ``sweep.json`` are the table of the
+grid of the last call. With either backend, SIGTERM to the sweep is passed on to the running
+trainings or evaluations (which save and end), then the sweep exits with 143; started again, it
+goes on.
 
 Cells run one after another in child processes on this machine (``backend=local``), or as plain Ray
 tasks (``backend=ray``, ``address=`` for a running cluster; ``out`` must then be on a file system
@@ -49,7 +51,7 @@ import yaml
 
 from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
-from mjnav.jobs import holder, joined_ray, usable_cores
+from mjnav.jobs import FolderInUse, holder, holding, joined_ray, usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = ["HEADLINE", "Cell", "SweepOptions", "arguments", "cells", "check_recorded", "grammar", "run", "run_cell",
@@ -388,10 +390,24 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     ``skipped`` (True) when it was read from an earlier ``result.json``, ``unchecked`` (True) when
     that file predates the recorded arguments.
     NaN is written to ``result.json`` as null.
+
+    The cell's folder is locked (:func:`mjnav.jobs.holding`) while this runs, so a second sweep on
+    the same ``out`` leaves the cell out (``busy``) instead of training or evaluating it again.
     """
+    head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
+    cell.folder.mkdir(parents=True, exist_ok=True)
+    with contextlib.ExitStack() as held:
+        try:
+            held.enter_context(holding(cell.folder))
+        except FolderInUse as err:  # only the taking of the lock
+            return {**head, "busy": f"another process (pid {err.pid}) is running this cell"}
+        return _run_held(cell, head)
+
+
+def _run_held(cell: Cell, head: dict[str, Any]) -> dict[str, Any]:
+    """:func:`run_cell` once the cell is locked."""
     given, recorded = arguments(cell), _recorded(cell)
-    head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **given}
-    if "busy" in recorded:  # another sweep (or a resume by hand) is training it: not counted here
+    if "busy" in recorded:  # a resume by hand is training its run: not counted here
         return {**head, "busy": recorded["busy"]}
     if recorded.get("file") == "result.json" and recorded.get("evaluate", given["evaluate"]) == given["evaluate"]:
         if "summary" in recorded:  # null back to NaN, as _summary reads an empty cell
@@ -399,7 +415,6 @@ def run_cell(cell: Cell) -> dict[str, Any]:
         unchecked = {"unchecked": True} if "train" not in recorded else {}
         del recorded["file"]
         return {**recorded, "point": head["point"], "skipped": True, **unchecked}
-    cell.folder.mkdir(parents=True, exist_ok=True)
     (cell.folder / "failed.json").unlink(missing_ok=True)
     run_dir = cell.folder / Path(recorded["run"]).name if "run" in recorded else None  # the sweep may have moved
     if run_dir is None or not (run_dir / "policy.pt").is_file():
@@ -474,8 +489,9 @@ def _ray_cells(ray: Any, todo: Sequence[Cell], cpus: int) -> Iterator[dict[str, 
 
     SIGTERM cancels the tasks (``ray.cancel``: a running cell passes it on to its training, which
     saves a checkpoint; a waiting one never starts) and waits for them to end, then exits with 143;
-    a second SIGTERM exits at once. Ray's own handler (installed by ``ray.init``) would exit at once
-    and lose the trainings' progress since their last periodic checkpoint.
+    a second SIGTERM stops the waiting (exit 143 at once). Ray's own handler (installed by
+    ``ray.init``) would exit at once and lose the trainings' progress since their last periodic
+    checkpoint.
     """
     task = ray.remote(num_cpus=cpus, max_retries=0)(_cell_task)
     pending = {task.remote(cell): cell for cell in todo}
@@ -533,7 +549,8 @@ BACKENDS.update(local=_local, ray=_ray)
 # ---------------------------------------------------------------------------- the table
 
 def table(results: Sequence[dict[str, Any]], keys: Sequence[str]) -> list[dict[str, Any]]:
-    """One row per grid point: its values, the seeds that finished, and mean/lo/hi of :data:`HEADLINE`."""
+    """One row per grid point: its values, the seeds that finished, failed and were left out
+    (``busy``), and mean/lo/hi of :data:`HEADLINE`."""
     groups: dict[tuple[str, ...], list[dict[str, Any]]] = {}
     for result in results:
         groups.setdefault(tuple(result["point"][k] for k in keys), []).append(result)
@@ -541,7 +558,8 @@ def table(results: Sequence[dict[str, Any]], keys: Sequence[str]) -> list[dict[s
     for values, members in groups.items():
         ok = [m for m in members if "summary" in m]
         row: dict[str, Any] = {**dict(zip(keys, values)), "seeds": sorted(m["seed"] for m in ok),
-                               "failed": sorted(m["seed"] for m in members if "failed" in m)}
+                               "failed": sorted(m["seed"] for m in members if "failed" in m),
+                               "busy": sorted(m["seed"] for m in members if "busy" in m)}
         for key, _, percent in HEADLINE:  # rates lie in [0, 1], times and lengths in [0, inf)
             values = [m["summary"].get(key, math.nan) for m in ok]
             mean, lo, hi = mean_interval(values, bounds=(0.0, 1.0 if percent else math.inf))
@@ -565,6 +583,7 @@ def format_table(rows: Sequence[dict[str, Any]], keys: Sequence[str]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     for row in rows:
         seeds = ",".join(map(str, row["seeds"])) + (f" ({len(row['failed'])} failed)" if row["failed"] else "")
+        seeds += f" ({len(row['busy'])} left out: running elsewhere)" if row.get("busy") else ""
         cells_ = [*(str(row[k]) for k in keys), seeds, *(_cell_text(row, k, p) for k, _, p in HEADLINE)]
         lines.append("| " + " | ".join(cells_) + " |")
     return "\n".join(lines) + "\n"

@@ -557,3 +557,14 @@ def test_a_run_still_training_is_not_resumed_twice(tmp_path, monkeypatch) -> Non
     session.run([f"resume={run_dir}", "train.iterations=2"], make_env=make_fake_env)
     assert checkpoints(run_dir)[-1].name == "model_1.pt"
     assert not list(run_dir.glob("*.partial"))  # config.yaml and checkpoints are written whole, then renamed
+
+
+def test_an_error_inside_the_locked_run_is_not_called_a_busy_folder(tmp_path, monkeypatch) -> None:
+    _stub_tasks(monkeypatch)
+
+    def no_fork(*args: object, **kwargs: object) -> NavVecEnv:
+        raise BlockingIOError(11, "Resource temporarily unavailable")  # a fork at a process limit
+
+    with pytest.raises(BlockingIOError, match="temporarily unavailable"):
+        session.run(["task=fake", "train.iterations=1", f"out={tmp_path}", *(f"train.{o}" for o in TINY)],
+                    make_env=no_fork)

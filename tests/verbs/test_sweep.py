@@ -232,9 +232,23 @@ def test_a_cell_another_process_is_training_is_left_out(tmp_path, monkeypatch, c
         assert main(argv) == 1
     assert [c[0] for c in calls] == ["train", "evaluate"] and "seed=2" in calls[0]
     assert f"seed-1: left out: {run} is being trained by another process (pid {os.getpid()})" in capsys.readouterr().err
-    assert not (first.folder / "failed.json").exists() and "| 2 |" in (tmp_path / "sweep.md").read_text()
+    assert not (first.folder / "failed.json").exists()
+    assert "| 2 (1 left out: running elsewhere) |" in (tmp_path / "sweep.md").read_text()
     calls.clear()
     assert main(argv) == 0 and [c[:2] for c in calls[:1]] == [["train", f"resume={run}"]]  # once it has ended
+
+
+def test_a_cell_another_sweep_is_running_is_left_out(tmp_path, monkeypatch, capsys) -> None:
+    """Two sweeps on one ``out``: the cell a live sweep holds (training, or evaluating after its
+    training released the run folder) is neither trained nor evaluated by the other."""
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1,2", f"out={tmp_path}"]
+    first, _ = _cells(argv[1:])
+    first.folder.mkdir(parents=True)
+    with holding(first.folder):
+        assert main(argv) == 1
+    assert [c[0] for c in calls] == ["train", "evaluate"] and "seed=2" in calls[0]
+    assert f"seed-1: left out: another process (pid {os.getpid()}) is running this cell" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("text", ["", "run: {}\n", "run:\n  argv: 3\n"])
