@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -78,23 +77,14 @@ def _kill_a_worker_on_the_last_rank() -> None:
     from mjnav.train import session
     from mjnav.train.runner import make_vec_env
     from mjnav.verbs import train as train_verb
+    from tests.train._dying import kill_a_worker_at
 
     kill_at = int(os.environ.get("MJNAV_TEST_KILL_AT", "-1"))
     if kill_at < 0 or os.environ.get("RANK") != str(int(os.environ.get("WORLD_SIZE", "1")) - 1):
         return
 
     def dying(*args: Any, **kwargs: Any) -> Any:
-        env = make_vec_env(*args, **kwargs)
-        step, calls = env.step, []
-
-        def step_then_kill(actions: torch.Tensor) -> Any:
-            calls.append(1)
-            if len(calls) == kill_at:
-                os.kill(env._handles[0].process.pid, signal.SIGKILL)
-            return step(actions)
-
-        env.step = step_then_kill
-        return env
+        return kill_a_worker_at(make_vec_env(*args, **kwargs), kill_at)
 
     train_verb.run_session = lambda argv: session.run(argv, make_env=dying)
 

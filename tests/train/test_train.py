@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
-import signal
 import sys
 from pathlib import Path
 
@@ -36,6 +34,7 @@ from mjnav.train.runner import (
     rsl_config,
     save_checkpoint,
 )
+from tests.train._dying import kill_a_worker_at
 
 OBS_DIM, ACT_DIM = 399, 4
 TINY = [
@@ -421,16 +420,7 @@ def _dying_worker_env(after_steps: int):
     """A ``make_env`` whose adapter has one worker process, SIGKILLed at step ``after_steps``."""
     def make(task: object, train: TrainConfig, seed: int | None = None, num_envs: int | None = None) -> NavVecEnv:
         env = NavVecEnv(fake_env_fn, train.num_envs, seed=train.seed, workers=2, max_episode_length=12)
-        step, calls = env.step, []
-
-        def step_then_die(actions: torch.Tensor) -> tuple:
-            calls.append(1)
-            if len(calls) == after_steps:
-                os.kill(env._handles[0].process.pid, signal.SIGKILL)
-            return step(actions)
-
-        env.step = step_then_die
-        return env
+        return kill_a_worker_at(env, after_steps)
     return make
 
 
