@@ -115,18 +115,18 @@ class FolderInUse(RuntimeError):
 
     Attributes:
         folder: The folder.
-        pid: The holder's pid as its lock file says ("?" when it says nothing yet).
+        pid: The holder's ``<pid> on <host>`` as its lock file says ("?" when it says nothing yet).
     """
 
     def __init__(self, folder: str | os.PathLike[str], pid: str) -> None:
-        """Name the folder and its holder."""
+        """Name the folder and its holder (``pid`` as :func:`holder` gives it)."""
         super().__init__(f"{folder} is in use by another process (pid {pid})")
         self.folder, self.pid = Path(folder), pid
 
 
 @contextlib.contextmanager
 def holding(folder: str | os.PathLike[str], patience_s: float = 1.0) -> Iterator[None]:
-    """Hold ``folder``'s lock (an ``flock`` on ``folder/.lock``, holding this pid) while inside.
+    """Hold ``folder``'s lock (an ``flock`` on ``folder/.lock``, which says ``<pid> on <host>``) while inside.
 
     The operating system drops the lock when the process ends, however it ends (SIGKILL too), so a
     held lock means a live writer. A lock held only for a look (:func:`holder`, microseconds) is
@@ -151,7 +151,7 @@ def holding(folder: str | os.PathLike[str], patience_s: float = 1.0) -> Iterator
                 time.sleep(0.02)
         try:
             f.truncate(0)
-            f.write(f"{os.getpid()}\n")
+            f.write(f"{os.getpid()} on {socket.gethostname()}\n")  # a cluster's nodes share the folder
             f.flush()
             yield
         finally:
@@ -159,8 +159,12 @@ def holding(folder: str | os.PathLike[str], patience_s: float = 1.0) -> Iterator
 
 
 def holder(folder: str | os.PathLike[str]) -> str | None:
-    """The pid (as the lock file holds it; "?" before it is written) of the live process holding
-    ``folder``'s lock, else None. Needs only read access to the folder."""
+    """``<pid> on <host>`` (as the lock file holds it; "?" before it is written) of the live process
+    holding ``folder``'s lock, else None.
+
+    Raises:
+        OSError: The lock file cannot be opened for reading (another user's, mode 600).
+    """
     path = Path(folder) / LOCK_FILE
     if fcntl is None or not path.is_file():
         return None

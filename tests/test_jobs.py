@@ -109,15 +109,15 @@ def test_a_folder_lock_is_seen_by_others_and_dropped_when_its_holder_is_killed(t
                              text=True, cwd=Path(__file__).parents[1])
     try:
         assert child.stdout.readline() == "held\n"
-        assert jobs.holder(tmp_path) == str(child.pid)
-        with pytest.raises(jobs.FolderInUse, match=f"pid {child.pid}"), jobs.holding(tmp_path, patience_s=0.1):
+        assert jobs.holder(tmp_path) == f"{child.pid} on {socket.gethostname()}"
+        with pytest.raises(jobs.FolderInUse, match=f"pid {child.pid} on "), jobs.holding(tmp_path, patience_s=0.1):
             pass
     finally:
         child.kill()
         child.wait()
     assert jobs.holder(tmp_path) is None  # SIGKILL: the system dropped it
     with jobs.holding(tmp_path):
-        assert jobs.holder(tmp_path) == str(os.getpid())
+        assert jobs.holder(tmp_path) == f"{os.getpid()} on {socket.gethostname()}"
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="flock")

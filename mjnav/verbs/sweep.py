@@ -38,6 +38,7 @@ import dataclasses
 import itertools
 import json
 import math
+import os
 import re
 import signal
 import subprocess
@@ -51,7 +52,7 @@ import yaml
 
 from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
-from mjnav.jobs import FolderInUse, holder, holding, joined_ray, usable_cores
+from mjnav.jobs import LOCK_FILE, FolderInUse, holder, holding, joined_ray, usable_cores
 from mjnav.schema import ConfigError
 
 __all__ = ["HEADLINE", "Cell", "SweepOptions", "arguments", "cells", "check_recorded", "grammar", "run", "run_cell",
@@ -293,11 +294,16 @@ def _interrupted(folder: Path) -> Path | None:
 
 
 def _training(folder: Path) -> tuple[Path, str] | None:
-    """A run folder under a cell's folder that a live process is training into, and its pid."""
+    """A run folder under a cell's folder that a live process is training into, and its pid (one
+    whose lock cannot be read counts as live: it cannot be told apart)."""
     if not folder.is_dir():
         return None
     for run_dir in folder.iterdir():
-        if run_dir.is_dir() and (pid := holder(run_dir)) is not None:
+        try:
+            pid = holder(run_dir) if run_dir.is_dir() else None
+        except OSError as err:
+            pid = f"unknown: {err}"
+        if pid is not None:
             return run_dir, pid
     return None
 
@@ -386,7 +392,8 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     The result: ``cell`` (folder name), ``point`` (``{KEY: value}``), ``seed``, ``train`` and
     ``evaluate`` (:func:`arguments`), ``run`` (run folder), ``summary`` (the evaluation's summary
     row), ``resumed`` (the checkpoint a stopped training went on from, when it did), or ``failed``
-    (which step) and ``log``, or ``busy`` (another process is training the cell; nothing done);
+    (which step) and ``log``, or ``busy`` (another process is training or evaluating the cell;
+    nothing done);
     ``skipped`` (True) when it was read from an earlier ``result.json``, ``unchecked`` (True) when
     that file predates the recorded arguments.
     NaN is written to ``result.json`` as null.
@@ -401,6 +408,8 @@ def run_cell(cell: Cell) -> dict[str, Any]:
             held.enter_context(holding(cell.folder))
         except FolderInUse as err:  # only the taking of the lock
             return {**head, "busy": f"another process (pid {err.pid}) is running this cell"}
+        except OSError as err:  # a .lock that is a folder, not ours to write, no locks on this file system
+            return _failed(cell, head, f"locking the cell ({err})", cell.folder / LOCK_FILE)
         return _run_held(cell, head)
 
 
@@ -424,7 +433,7 @@ def _run_held(cell: Cell, head: dict[str, Any]) -> dict[str, Any]:
         head.update(resumed)
         went_on = bool(resumed)
         trained = {"train": given["train"], "run": str(run_dir), **resumed}
-        (cell.folder / "trained.json").write_text(json.dumps(trained, indent=1) + "\n", encoding="utf-8")
+        _write(cell.folder / "trained.json", json.dumps(trained, indent=1) + "\n")
     else:
         head.update({k: recorded[k] for k in ("resumed",) if k in recorded})
         went_on = False
@@ -432,7 +441,7 @@ def _run_held(cell: Cell, head: dict[str, Any]) -> dict[str, Any]:
     if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
         return _failed(cell, head, "evaluate", log)
     result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
-    (cell.folder / "result.json").write_text(json.dumps(_no_nan(result), indent=1) + "\n", encoding="utf-8")
+    _write(cell.folder / "result.json", json.dumps(_no_nan(result), indent=1) + "\n")
     return {**result, "went_on": True} if went_on else result
 
 
@@ -460,7 +469,7 @@ def _train(cell: Cell, stopped: Path | None) -> tuple[Path | None, dict[str, str
 
 def _failed(cell: Cell, head: dict[str, Any], step: str, log: Path) -> dict[str, Any]:
     result = {**head, "failed": step, "log": str(log)}
-    (cell.folder / "failed.json").write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    _write(cell.folder / "failed.json", json.dumps(result, indent=1) + "\n")
     return result
 
 
@@ -583,10 +592,18 @@ def format_table(rows: Sequence[dict[str, Any]], keys: Sequence[str]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     for row in rows:
         seeds = ",".join(map(str, row["seeds"])) + (f" ({len(row['failed'])} failed)" if row["failed"] else "")
-        seeds += f" ({len(row['busy'])} left out: running elsewhere)" if row.get("busy") else ""
+        seeds = (seeds + (f" ({len(row['busy'])} left out: running elsewhere)" if row.get("busy") else "")).strip()
         cells_ = [*(str(row[k]) for k in keys), seeds, *(_cell_text(row, k, p) for k, _, p in HEADLINE)]
         lines.append("| " + " | ".join(cells_) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` whole: a temporary file beside it, then one rename (a reader, or a
+    sweep reading the cells, never sees half a file)."""
+    partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
+    partial.write_text(text, encoding="utf-8")
+    os.replace(partial, path)
 
 
 def _no_nan(value: Any) -> Any:
@@ -634,9 +651,9 @@ def run(parsed: Parsed, argv: list[str]) -> int:
     results.sort(key=lambda r: order[r["cell"]])
     rows = table(results, keys)
     text = format_table(rows, keys)
-    (out / "sweep.md").write_text(text, encoding="utf-8")
+    _write(out / "sweep.md", text)
     record = {"task": opts.task, "axes": keys, "episodes": opts.episodes, "rows": rows, "runs": results}
-    (out / "sweep.json").write_text(json.dumps(_no_nan(record), indent=1) + "\n", encoding="utf-8")
+    _write(out / "sweep.json", json.dumps(_no_nan(record), indent=1) + "\n")
     print(text, end="")
     print(f"wrote {out}/sweep.md and {out}/sweep.json")
     return 1 if any("failed" in r or "busy" in r for r in results) else 0

@@ -8,6 +8,7 @@ import json
 import math
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -231,7 +232,8 @@ def test_a_cell_another_process_is_training_is_left_out(tmp_path, monkeypatch, c
     with holding(run):
         assert main(argv) == 1
     assert [c[0] for c in calls] == ["train", "evaluate"] and "seed=2" in calls[0]
-    assert f"seed-1: left out: {run} is being trained by another process (pid {os.getpid()})" in capsys.readouterr().err
+    me = f"{os.getpid()} on {socket.gethostname()}"
+    assert f"seed-1: left out: {run} is being trained by another process (pid {me})" in capsys.readouterr().err
     assert not (first.folder / "failed.json").exists()
     assert "| 2 (1 left out: running elsewhere) |" in (tmp_path / "sweep.md").read_text()
     calls.clear()
@@ -248,7 +250,19 @@ def test_a_cell_another_sweep_is_running_is_left_out(tmp_path, monkeypatch, caps
     with holding(first.folder):
         assert main(argv) == 1
     assert [c[0] for c in calls] == ["train", "evaluate"] and "seed=2" in calls[0]
-    assert f"seed-1: left out: another process (pid {os.getpid()}) is running this cell" in capsys.readouterr().err
+    me = f"{os.getpid()} on {socket.gethostname()}"
+    assert f"seed-1: left out: another process (pid {me}) is running this cell" in capsys.readouterr().err
+    assert not list(tmp_path.rglob("*.partial"))  # results and the table are written whole, then renamed
+
+
+def test_a_cell_that_cannot_be_locked_is_a_failed_cell(tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.setattr(sweep, "_mjnav", _fake_mjnav(calls := []))
+    argv = ["sweep", "task=stage1", "seeds=1,2", f"out={tmp_path}"]
+    first, _ = _cells(argv[1:])
+    (first.folder / ".lock").mkdir(parents=True)  # no file to lock
+    assert main(argv) == 1 and [c[0] for c in calls] == ["train", "evaluate"]
+    assert "seed-1: failed in locking the cell ([Errno 21] Is a directory" in capsys.readouterr().err
+    assert "| 2 (1 failed) |" in (tmp_path / "sweep.md").read_text()
 
 
 @pytest.mark.parametrize("text", ["", "run: {}\n", "run:\n  argv: 3\n"])
