@@ -30,7 +30,7 @@ __all__ = ["ARRAY_TASK_ENV", "LOCK_FILE", "FolderInUse", "check_reachable", "hol
 
 #: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
 ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
-#: The lock file a process writing a folder holds (:func:`holding`); it holds its pid.
+#: The lock file a process writing a folder holds (:func:`holding`); it says ``<pid> on <host>``.
 LOCK_FILE = ".lock"
 #: The stamps this process has handed out (two calls in one second differ too).
 _ISSUED: set[str] = set()

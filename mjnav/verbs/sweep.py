@@ -393,10 +393,9 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     ``evaluate`` (:func:`arguments`), ``run`` (run folder), ``summary`` (the evaluation's summary
     row), ``resumed`` (the checkpoint a stopped training went on from, when it did), or ``failed``
     (which step) and ``log``, or ``busy`` (another process is training or evaluating the cell;
-    nothing done);
-    ``skipped`` (True) when it was read from an earlier ``result.json``, ``unchecked`` (True) when
-    that file predates the recorded arguments.
-    NaN is written to ``result.json`` as null.
+    nothing done); ``skipped`` (True) when it was read from an earlier ``result.json``,
+    ``unchecked`` (True) when that file predates the recorded arguments. NaN is written to
+    ``result.json`` as null.
 
     The cell's folder is locked (:func:`mjnav.jobs.holding`) while this runs, so a second sweep on
     the same ``out`` leaves the cell out (``busy``) instead of training or evaluating it again.
