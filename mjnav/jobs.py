@@ -3,8 +3,9 @@
 A process of a job array (SLURM, Ray, a shell loop) may start in the same second as its siblings,
 on the same shared file system, with fewer CPUs than the machine has. Worker counts therefore come
 from the CPU affinity mask (:func:`usable_cores`), folders named by time carry a suffix unique
-to the process (:func:`unique_stamp`), and a process that writes a folder holds a lock on it that
-others can test (:func:`holding`, :func:`holder`).
+to the process (:func:`unique_stamp`), a process that writes a folder holds a lock on it that
+others can test (:func:`holding`, :func:`holder`), and files that others read are written whole
+(:func:`write_atomic`).
 
 This module is a bottom layer: it imports nothing from mjnav.
 """
@@ -15,6 +16,7 @@ import contextlib
 import os
 import secrets
 import socket
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +28,7 @@ except ImportError:  # Windows: no flock, so folders are not locked (holding() h
     fcntl = None  # type: ignore[assignment]
 
 __all__ = ["ARRAY_TASK_ENV", "LOCK_FILE", "FolderInUse", "check_reachable", "holder", "holding", "joined_ray",
-           "unique_stamp", "usable_cores"]
+           "unique_stamp", "usable_cores", "write_atomic"]
 
 #: Environment variable holding a job array's task id (SLURM); shown in the stamp when set.
 ARRAY_TASK_ENV = "SLURM_ARRAY_TASK_ID"
@@ -175,3 +177,28 @@ def holder(folder: str | os.PathLike[str]) -> str | None:
             return f.read().strip() or "?"
         fcntl.flock(f, fcntl.LOCK_UN)
     return None
+
+
+def write_atomic(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` whole: a temporary file beside it, fsync, one ``os.replace`` (then
+    fsync the folder). A kill at any moment leaves the old file or the new one, never half of one,
+    and a reader never sees a partial file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    try:
+        folder = os.open(path.parent, os.O_RDONLY)
+    except OSError:  # a platform without directory handles
+        return
+    try:
+        os.fsync(folder)
+    finally:
+        os.close(folder)

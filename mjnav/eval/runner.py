@@ -39,7 +39,6 @@ import multiprocessing.connection
 import os
 import subprocess
 import sys
-import tempfile
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -58,7 +57,7 @@ from mjnav.eval.metrics import (
 )
 from mjnav.eval.social import aggregate_social, social_metrics
 from mjnav.args import Grammar, parse
-from mjnav.jobs import joined_ray, usable_cores
+from mjnav.jobs import joined_ray, usable_cores, write_atomic
 from mjnav import shipped
 from mjnav.schema import ConfigError, to_dict
 
@@ -825,29 +824,7 @@ def _rewrite_sorted(path: Path) -> None:
     text = "".join(json.dumps(unique[i]) + "\n" for i in sorted(unique))
     if path.read_text(encoding="utf-8") == text:
         return
-    _atomic_write(path, text)
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file, fsync and ``os.replace`` (then fsync the folder)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    try:
-        folder = os.open(path.parent, os.O_RDONLY)
-    except OSError:  # a platform without directory handles
-        return
-    try:
-        os.fsync(folder)
-    finally:
-        os.close(folder)
+    write_atomic(path, text)
 
 
 def task_sha256(config: TaskConfig) -> str:

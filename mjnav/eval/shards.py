@@ -32,11 +32,11 @@ from mjnav.eval.runner import (
     _COMMON_KEYS,
     HELD_OUT_BASE,
     EvalError,
-    _atomic_write,
     read_jsonl,
     summarise,
     write_summaries,
 )
+from mjnav.jobs import write_atomic
 
 __all__ = ["SHARD_FILE", "merge", "shard_files"]
 
@@ -143,7 +143,7 @@ def _write_jsonl(path: Path, records: list[dict[str, Any]]) -> None:
         raise EvalError(f"merge: {path} holds {len(foreign)} records that are not among the merged ones "
                         f"(episode {foreign[0].get('index')!r} first); it is left as it is: choose another out=")
     path.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_write(path, text)
+    write_atomic(path, text)
 
 
 def merge(sources: Sequence[str | Path], out_dir: str | Path, episodes: int | None = None) -> list[dict[str, Any]]:

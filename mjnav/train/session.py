@@ -21,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-import os
 import shlex
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -33,7 +32,7 @@ import yaml
 
 from mjnav import shipped
 from mjnav.args import Grammar, parse
-from mjnav.jobs import FolderInUse, holder, holding, unique_stamp
+from mjnav.jobs import FolderInUse, holder, holding, unique_stamp, write_atomic
 from mjnav.config import TASK_SECTIONS, TaskConfig
 from mjnav.envs.vec_env import EnvError
 from mjnav.policy import training_overrides
@@ -307,9 +306,8 @@ def _plan_resume(args: RunArgs) -> RunPlan:
     run_dir = Path(args.resume)  # type: ignore[arg-type]
     if not (run_dir / "config.yaml").is_file():
         raise ConfigError(f"resume: {str(run_dir)!r} is not a run folder (no config.yaml)")
-    if (pid := holder(run_dir)) is not None:
-        raise ConfigError(f"resume: {run_dir} is being trained by another process (pid {pid}); "
-                          "wait for it to end or stop it first")
+    if (pid := holder(run_dir)) is not None:  # every torchrun rank refuses, not rank 0 alone in _writing
+        raise _in_use(run_dir, pid)
     saved = yaml.safe_load((run_dir / "config.yaml").read_text())
     train = load_train(list(args.train_overrides), base=from_dict(TrainConfig, saved["train"]))
     overrides = list(saved["run"]["task_overrides"]) + list(args.task_overrides)
@@ -370,9 +368,7 @@ def _write_config(plan: RunPlan, argv: Sequence[str]) -> None:
         "task": to_dict(plan.task),
         "train": to_dict(plan.train),
     }
-    partial = plan.run_dir / "config.yaml.partial"  # a kill while writing leaves the old file whole
-    partial.write_text(yaml.safe_dump(record, sort_keys=False))
-    os.replace(partial, path)
+    write_atomic(path, yaml.safe_dump(record, sort_keys=False))  # a kill while writing leaves the old file whole
 
 
 def run(argv: Sequence[str], make_env: Callable[..., Any] = make_vec_env) -> Path:
@@ -408,9 +404,14 @@ def _writing(run_dir: Path) -> Iterator[None]:
         try:
             held.enter_context(holding(run_dir))
         except FolderInUse as err:  # only the taking of the lock: the training's own errors pass as they are
-            raise ConfigError(f"resume: {run_dir} is being trained by another process (pid {err.pid}); "
-                              "wait for it to end or stop it first") from None
+            raise _in_use(run_dir, err.pid) from None
         yield
+
+
+def _in_use(run_dir: Path, pid: str) -> ConfigError:
+    """The error for a ``resume=`` of a run that another live process (``pid``) is training."""
+    return ConfigError(f"resume: {run_dir} is being trained by another process (pid {pid}); "
+                       "wait for it to end or stop it first")
 
 
 def _run_rank(plan: RunPlan, make_env: Callable[..., Any], main: bool) -> Path:

@@ -38,7 +38,6 @@ import dataclasses
 import itertools
 import json
 import math
-import os
 import re
 import signal
 import subprocess
@@ -52,7 +51,7 @@ import yaml
 
 from mjnav.args import ArgsError, Grammar, Parsed, config_key
 from mjnav.eval.intervals import mean_interval
-from mjnav.jobs import LOCK_FILE, FolderInUse, holder, holding, joined_ray, usable_cores
+from mjnav.jobs import LOCK_FILE, FolderInUse, holder, holding, joined_ray, usable_cores, write_atomic
 from mjnav.schema import ConfigError
 
 __all__ = ["HEADLINE", "Cell", "SweepOptions", "arguments", "cells", "check_recorded", "grammar", "run", "run_cell",
@@ -344,6 +343,11 @@ def arguments(cell: Cell) -> dict[str, list[str]]:
     return {"train": list(cell.train), "evaluate": [a for a in cell.evaluate if not a.startswith("workers=")]}
 
 
+def _head(cell: Cell) -> dict[str, Any]:
+    """The keys every result of ``cell`` starts with: ``cell``, ``point``, ``seed`` and :func:`arguments`."""
+    return {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
+
+
 def _recorded(cell: Cell) -> dict[str, Any]:
     """What an earlier call left in the cell: its ``result.json``, else its ``trained.json``, else the
     arguments of a stopped training to resume (``interrupted``: its run folder), else {}."""
@@ -400,7 +404,7 @@ def run_cell(cell: Cell) -> dict[str, Any]:
     The cell's folder is locked (:func:`mjnav.jobs.holding`) while this runs, so a second sweep on
     the same ``out`` leaves the cell out (``busy``) instead of training or evaluating it again.
     """
-    head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
+    head = _head(cell)
     cell.folder.mkdir(parents=True, exist_ok=True)
     with contextlib.ExitStack() as held:
         try:
@@ -432,7 +436,7 @@ def _run_held(cell: Cell, head: dict[str, Any]) -> dict[str, Any]:
         head.update(resumed)
         went_on = bool(resumed)
         trained = {"train": given["train"], "run": str(run_dir), **resumed}
-        _write(cell.folder / "trained.json", json.dumps(trained, indent=1) + "\n")
+        write_atomic(cell.folder / "trained.json", json.dumps(trained, indent=1) + "\n")
     else:
         head.update({k: recorded[k] for k in ("resumed",) if k in recorded})
         went_on = False
@@ -440,7 +444,7 @@ def _run_held(cell: Cell, head: dict[str, Any]) -> dict[str, Any]:
     if _mjnav(["evaluate", f"policy={run_dir}", *cell.evaluate, f"out={cell.folder / 'eval'}"], log) != 0:
         return _failed(cell, head, "evaluate", log)
     result = {**head, "run": str(run_dir), "summary": _summary(cell.folder / "eval" / "summary.csv")}
-    _write(cell.folder / "result.json", json.dumps(_no_nan(result), indent=1) + "\n")
+    write_atomic(cell.folder / "result.json", json.dumps(_no_nan(result), indent=1) + "\n")
     return {**result, "went_on": True} if went_on else result
 
 
@@ -468,7 +472,7 @@ def _train(cell: Cell, stopped: Path | None) -> tuple[Path | None, dict[str, str
 
 def _failed(cell: Cell, head: dict[str, Any], step: str, log: Path) -> dict[str, Any]:
     result = {**head, "failed": step, "log": str(log)}
-    _write(cell.folder / "failed.json", json.dumps(result, indent=1) + "\n")
+    write_atomic(cell.folder / "failed.json", json.dumps(result, indent=1) + "\n")
     return result
 
 
@@ -547,8 +551,7 @@ def _ray_result(ray: Any, done: Any, cell: Cell) -> dict[str, Any]:
     try:
         return ray.get(done)
     except ray.exceptions.RayError as err:  # a crashed worker process or a lost node
-        head = {"cell": cell.folder.name, "point": dict(cell.point), "seed": cell.seed, **arguments(cell)}
-        return _failed(cell, head, f"Ray ({type(err).__name__})", cell.folder / "train.log")
+        return _failed(cell, _head(cell), f"Ray ({type(err).__name__})", cell.folder / "train.log")
 
 
 BACKENDS.update(local=_local, ray=_ray)
@@ -597,14 +600,6 @@ def format_table(rows: Sequence[dict[str, Any]], keys: Sequence[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` whole: a temporary file beside it, then one rename (a reader, or a
-    sweep reading the cells, never sees half a file)."""
-    partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
-    partial.write_text(text, encoding="utf-8")
-    os.replace(partial, path)
-
-
 def _no_nan(value: Any) -> Any:
     """``value`` with NaN floats as None (strict JSON)."""
     if isinstance(value, float) and math.isnan(value):
@@ -650,9 +645,9 @@ def run(parsed: Parsed, argv: list[str]) -> int:
     results.sort(key=lambda r: order[r["cell"]])
     rows = table(results, keys)
     text = format_table(rows, keys)
-    _write(out / "sweep.md", text)
+    write_atomic(out / "sweep.md", text)
     record = {"task": opts.task, "axes": keys, "episodes": opts.episodes, "rows": rows, "runs": results}
-    _write(out / "sweep.json", json.dumps(_no_nan(record), indent=1) + "\n")
+    write_atomic(out / "sweep.json", json.dumps(_no_nan(record), indent=1) + "\n")
     print(text, end="")
     print(f"wrote {out}/sweep.md and {out}/sweep.json")
     return 1 if any("failed" in r or "busy" in r for r in results) else 0

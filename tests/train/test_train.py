@@ -546,7 +546,7 @@ def test_a_run_still_training_is_not_resumed_twice(tmp_path, monkeypatch) -> Non
         session.run([f"resume={run_dir}", "train.iterations=2"], make_env=make_fake_env)
     session.run([f"resume={run_dir}", "train.iterations=2"], make_env=make_fake_env)
     assert checkpoints(run_dir)[-1].name == "model_1.pt"
-    assert not list(run_dir.glob("*.partial"))  # config.yaml and checkpoints are written whole, then renamed
+    assert not [*run_dir.glob("*.partial"), *run_dir.glob(".*.tmp")]  # config.yaml, checkpoints: whole, renamed
 
 
 def test_an_error_inside_the_locked_run_is_not_called_a_busy_folder(tmp_path, monkeypatch) -> None:

@@ -252,7 +252,7 @@ def test_a_cell_another_sweep_is_running_is_left_out(tmp_path, monkeypatch, caps
     assert [c[0] for c in calls] == ["train", "evaluate"] and "seed=2" in calls[0]
     me = f"{os.getpid()} on {socket.gethostname()}"
     assert f"seed-1: left out: another process (pid {me}) is running this cell" in capsys.readouterr().err
-    assert not list(tmp_path.rglob("*.partial"))  # results and the table are written whole, then renamed
+    assert not [*tmp_path.rglob("*.partial"), *tmp_path.rglob(".*.tmp")]  # written whole, then renamed
 
 
 def test_a_cell_that_cannot_be_locked_is_a_failed_cell(tmp_path, monkeypatch, capsys) -> None:
