@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
 
 import mujoco
 import numpy as np
@@ -33,7 +34,7 @@ class NavEnvironment(composer.Environment):
     the step).
 
     :meth:`step_task` runs only the task's part of a step, for the Gymnasium adapter, which
-    reads its outputs from the task.
+    reads its outputs from the task; :meth:`step_stages` runs it stage by stage.
 
     Relies on composer internals (``_hooks`` and its hook lists, ``_physics``, ``_n_sub_steps``) of the pinned
     dm-control release; ``tests/envs/test_environment.py`` checks the rollouts match.
@@ -87,14 +88,34 @@ class NavEnvironment(composer.Environment):
         buffers, the pending reset after a last step) is not advanced, so do not mix this with
         :meth:`step` within an episode.
         """
+        for _ in self.step_stages(action):
+            pass
+
+    def step_stages(self, action) -> Iterator[None]:
+        """:meth:`step_task` in stages: each ``next()`` runs one, the generator ends with the step.
+
+        The stages are the task's before-step hook, its substeps, and its after-step hook (in two,
+        :meth:`~mjnav.tasks.nav.CrowdNavTask.sense` and ``score``, when the task
+        ``splits_after_step``). An environment's stages only touch its own state, so the
+        environments of a process may be stepped stage by stage (every environment's first stage,
+        then every second ...) with the results of stepping them in turn, while each stage's
+        code and shared data stay in the cache (:class:`mjnav.envs.workers._EnvGroup`).
+        """
         task, physics, proxy = self._task, self._physics, self._physics_proxy
         task.before_step(proxy, action, self._random_state)
+        yield
         warnings = physics.data.ptr.warning.number
         before = warnings.tobytes()
         task.run_substeps(proxy)
         if warnings.tobytes() != before:
             self._raise_warnings(physics, warnings, before)
-        task.after_step(proxy, self._random_state)
+        yield
+        if getattr(task, "splits_after_step", False):
+            task.sense(proxy)
+            yield
+            task.score(proxy)
+        else:
+            task.after_step(proxy, self._random_state)
 
     def _can_fuse(self) -> bool:
         """Whether the task may run the step's substeps at once: it offers to, no other substep hooks."""

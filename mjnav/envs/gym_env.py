@@ -42,7 +42,8 @@ Version History:
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Generator
+from typing import Any, TypeVar
 
 import gymnasium as gym
 import numpy as np
@@ -53,7 +54,7 @@ from mjnav.tasks.privileged import critic_size
 from mjnav.viz.gl import select_gl_backend
 from mjnav.viz.scene import OffscreenView, RenderConfig, camera_ids, make_drawer
 
-__all__ = ["NavGymEnv", "make_gym_env", "make_registered"]
+__all__ = ["NavGymEnv", "make_gym_env", "make_registered", "run_stages"]
 
 _CAMERAS = ("top", "track")
 
@@ -146,6 +147,15 @@ class NavGymEnv(gym.Env):
         Raises:
             RuntimeError: If the episode has ended (call ``reset()`` first).
         """
+        return run_stages(self.step_stages(action))
+
+    def step_stages(self, action) -> Generator[None, None, tuple]:
+        """:meth:`step` in stages: each ``next()`` runs one; the last ends the generator with
+        ``StopIteration`` carrying :meth:`step`'s return value (:func:`run_stages` runs them all).
+
+        The stages of a task step (:meth:`mjnav.envs.environment.NavEnvironment.step_stages`), or
+        one stage holding composer's whole step. The action is checked at the first ``next()``.
+        """
         if self.task.layout is None or self.task.outcome.done:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         try:
@@ -153,7 +163,7 @@ class NavGymEnv(gym.Env):
         except (TypeError, ValueError):
             raise ValueError(f"action: expected {self.action_space.shape[0]} numbers, got {action!r}") from None
         if self._step_task:
-            self._env.step_task(action)
+            yield from self._env.step_stages(action)
             obs, reward = self.task.observation, float(self.task.get_reward(None))
         else:
             timestep = self._env.step(action)
@@ -208,6 +218,18 @@ def _check_seed(name: str, value: Any, bound: int) -> None:
         return
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 0 <= int(value) < bound:
         raise ValueError(f"{name}: expected an integer in [0, {bound}), got {value!r}")
+
+
+_T = TypeVar("_T")
+
+
+def run_stages(stages: Generator[None, None, _T]) -> _T:
+    """Run a staged step (:meth:`NavGymEnv.step_stages`) to its end; its return value."""
+    try:
+        while True:
+            next(stages)
+    except StopIteration as done:
+        return done.value
 
 
 def make_gym_env(config: TaskConfig | str, seed: int | None = None, **kwargs: Any) -> NavGymEnv:

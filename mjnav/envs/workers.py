@@ -67,12 +67,17 @@ def _views(buffer: Any, layout: dict[str, tuple]) -> dict[str, np.ndarray]:
 
 
 class _EnvGroup:
-    """The environments of one worker, stepping into (shared) numpy buffers."""
+    """The environments of one worker, stepping into (shared) numpy buffers.
+
+    Environments that offer ``step_stages`` (:class:`mjnav.envs.gym_env.NavGymEnv`) are stepped
+    stage by stage, the others in turn; the results are the same.
+    """
 
     def __init__(self, env_fn: EnvFn, indices: range, seed: int) -> None:
         self.indices = indices
         self.seed = seed
         self.envs = [env_fn(i) for i in indices]
+        self._staged = all(hasattr(env, "step_stages") for env in self.envs)  # NavGymEnv, not wrapped
         self.buf: dict[str, np.ndarray] = {}
         self._seeded = False
 
@@ -117,9 +122,9 @@ class _EnvGroup:
         buf = self.buf
         actions, force, outcomes = buf["actions"], buf["force"], buf["outcome"]
         observations, rewards, terminated_buf, truncated_buf = buf["obs"], buf["rewards"], buf["terminated"], buf["truncated"]
-        for i, env in zip(self.indices, self.envs, strict=True):
+        steps = self._in_stages(actions) if self._staged else self._in_turn(actions)
+        for i, env, (obs, reward, terminated, truncated, info) in zip(self.indices, self.envs, steps, strict=True):
             try:
-                obs, reward, terminated, truncated, info = env.step(actions[i].copy())
                 for name, value in info.get("reward_terms", {}).items():  # plain dict sums: cheaper than Counter
                     terms[name] = terms.get(name, 0.0) + value
                 for name, value in info.get("mpc", {}).items():
@@ -137,6 +142,35 @@ class _EnvGroup:
                 _blame(exc, i)
                 raise
         return Counter(terms), Counter(mpc_sum), Counter(mpc_count), time.perf_counter() - start, time.thread_time() - cpu
+
+    def _in_turn(self, actions: np.ndarray) -> Iterator[tuple]:
+        """Each environment's ``step`` result, stepping it only when asked for it."""
+        for i, env in zip(self.indices, self.envs, strict=True):
+            try:
+                yield env.step(actions[i].copy())
+            except Exception as exc:
+                _blame(exc, i)
+                raise
+
+    def _in_stages(self, actions: np.ndarray) -> list[tuple]:
+        """Every environment's ``step`` result, stepping them stage by stage (``step_stages``):
+        the first stage of each, then the second ... (the results of :meth:`_in_turn`, faster: see
+        :meth:`mjnav.envs.environment.NavEnvironment.step_stages`)."""
+        stepping = [(k, env.step_stages(actions[i].copy())) for k, (i, env) in enumerate(zip(self.indices, self.envs))]
+        results: list[tuple] = [()] * len(stepping)
+        while stepping:
+            going = []
+            for k, stages in stepping:
+                try:
+                    next(stages)
+                    going.append((k, stages))
+                except StopIteration as done:
+                    results[k] = done.value
+                except Exception as exc:
+                    _blame(exc, self.indices[k])
+                    raise
+            stepping = going
+        return results
 
     def close(self) -> None:
         """Close every environment."""

@@ -50,7 +50,9 @@ class CrowdNavTask(composer.Task):
         self.planner = None  # a mjnav.planners.base.Planner replaces the learned action layer when set
         self._scan = None
         self.timers = {"physics": 0.0, "lidar": 0.0}  # seconds, accumulated; NavCore has the rest
-        self._t_physics = 0.0
+        self._t_physics: float | None = None  # start of composer's own substeps (None: run_substeps timed them)
+        self._physics_time = 0.0  # seconds of this period's physics so far
+        self._sensed: tuple | None = None  # what sense() read, for score()
         self._observable = observable.Generic(lambda physics: self._obs)
         self._observable.enabled = True
 
@@ -125,8 +127,10 @@ class CrowdNavTask(composer.Task):
             jerk = self.core.plan(action, p, v, a)
         else:
             jerk = self.core.plan_with(self.planner, self._scan, p, v, a, self._crowd_truth())
-        self._t_physics = time.perf_counter()  # the command starts the period (crowd, tracking)
+        t0 = time.perf_counter()  # the command starts the period (crowd, tracking)
         self.sim.apply_command(physics, jerk, state)
+        self._t_physics = t1 = time.perf_counter()  # composer's own substeps run from here to after_step
+        self._physics_time = t1 - t0
 
     def _crowd_truth(self) -> dict[str, np.ndarray]:
         """The pedestrians' ground truth the planner declared (``privileged``), read-only copies."""
@@ -157,19 +161,46 @@ class CrowdNavTask(composer.Task):
         return before is CrowdNavTask.before_substep and after is composer.Task.after_substep and self.sim.fused
 
     def run_substeps(self, physics) -> None:
-        """All of the step's substeps (hooks and ``mj_step``) at once: :meth:`NavSim.run_period`."""
+        """All of the step's substeps (hooks and ``mj_step``) at once: :meth:`NavSim.run_period`.
+
+        Timed on its own: a staged step (:meth:`mjnav.envs.environment.NavEnvironment.step_stages`)
+        runs other environments' stages between this and :meth:`before_step` or :meth:`sense`.
+        """
+        t0 = time.perf_counter()
         self.sim.run_period(physics)
+        self._physics_time += time.perf_counter() - t0
+        self._t_physics = None
 
     def after_step(self, physics, random_state) -> None:
-        """Scan, score the step and build the next observation."""
+        """Scan, score the step and build the next observation: :meth:`sense`, then :meth:`score`."""
         del random_state
+        self.sense(physics)
+        self.score(physics)
+
+    @property
+    def splits_after_step(self) -> bool:
+        """Whether :meth:`sense` then :meth:`score` may stand in for :meth:`after_step` (not overridden)."""
+        return getattr(self.after_step, "__func__", None) is CrowdNavTask.after_step
+
+    def sense(self, physics) -> None:
+        """First half of :meth:`after_step`: the robot state, the scan and the contacts after the period."""
+        t_sync = time.perf_counter()
         self.sim.sync(physics)
         t0 = time.perf_counter()
-        self.timers["physics"] += t0 - self._t_physics
+        substeps = 0.0 if self._t_physics is None else t_sync - self._t_physics  # composer's own substeps
+        self.timers["physics"] += self._physics_time + substeps + (t0 - t_sync)
         p, v, _ = self.sim.robot_state(physics)
         scan = self._scan = self.sim.scan(physics, self.rng)
         self.timers["lidar"] += time.perf_counter() - t0
         contact, self.contact_kind = self.sim.robot_in_collision(physics)
+        self._sensed = (p, v, scan, contact)
+
+    def score(self, physics) -> None:
+        """Second half of :meth:`after_step`: reward, outcome and observation from what :meth:`sense` read."""
+        if self._sensed is None:
+            raise RuntimeError("score() without sense() in this step")
+        p, v, scan, contact = self._sensed
+        self._sensed = None
         obs, self._reward, self.terms = self.core.finish_step(p, v, scan, contact)
         self._obs[:] = obs
         self._observe_crowd(physics, p)

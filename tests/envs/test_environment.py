@@ -90,3 +90,32 @@ def test_substep_hooks_of_others_still_run() -> None:
         np.testing.assert_array_equal(a, b)
     assert len(calls) == 10 * ours.task.physics_steps_per_control_step
     assert not ours._can_fuse() and ours.task.fused_substeps
+
+
+def test_step_stages_are_the_task_step() -> None:
+    """Four stages (before-step hook, substeps, sense, score) with the state of ``step_task``."""
+    staged, whole = _make(NavEnvironment), _make(NavEnvironment)
+    staged.reset(), whole.reset()
+    assert staged.can_step_task() and staged.task.splits_after_step
+    for action in np.random.default_rng(1).normal(size=(5, 4)).astype(np.float32):
+        assert sum(1 for _ in staged.step_stages(action)) == 3  # yields between four stages
+        whole.step_task(action)
+        np.testing.assert_array_equal(staged.task.observation, whole.task.observation)
+        assert staged.task.get_reward(None) == whole.task.get_reward(None)
+    np.testing.assert_array_equal(staged.physics.data.qpos, whole.physics.data.qpos)
+
+
+def test_an_overridden_after_step_runs_whole() -> None:
+    """A task whose after-step hook is replaced is not split into sense and score: the hook runs."""
+    env = _make(NavEnvironment)
+    env.reset()
+    calls, original = [], env.task.after_step
+
+    def after_step(physics, random_state):
+        calls.append(1)
+        original(physics, random_state)
+
+    env.task.after_step = after_step
+    assert not env.task.splits_after_step
+    assert sum(1 for _ in env.step_stages(np.zeros(4, dtype=np.float32))) == 2
+    assert calls == [1]

@@ -1,0 +1,89 @@
+"""A worker's group of real environments: stepped stage by stage, with the results of stepping in turn."""
+
+from __future__ import annotations
+
+import time
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from mjnav.envs.gym_env import NavGymEnv
+from mjnav.envs.workers import _EnvGroup, _layout, _views
+
+#: Short episodes (timeouts), a wide goal (successes), a privileged critic block and a crowd.
+OVERRIDES = ["timing.episode_steps=6", "reward.goal_tolerance=5.0", "observation.critic_pedestrians=2", "crowd.count=6"]
+
+
+class InTurn(gym.Wrapper):
+    """A NavGymEnv without ``step_stages`` (wrappers do not forward it): the group steps it in turn."""
+
+
+def _group(staged: bool, count: int = 3) -> _EnvGroup:
+    def make(index: int) -> gym.Env:
+        env = NavGymEnv("stage5", overrides=OVERRIDES)
+        return env if staged else InTurn(env)
+
+    group = _EnvGroup(make, range(count), seed=11)
+    env = group.envs[0]
+    layout, size = _layout(count, env.observation_space.shape[0], env.action_space.shape[0],
+                           env.unwrapped.critic_size)
+    group.buf = _views(bytearray(size), layout)
+    group.reset()
+    return group
+
+
+def _trace(group: _EnvGroup, steps: int) -> list:
+    rng = np.random.default_rng(5)
+    out = []
+    for k in range(steps):
+        group.buf["actions"][:] = 3.0 * rng.normal(size=group.buf["actions"].shape)
+        group.buf["force"][:] = False
+        group.buf["force"][1] = k % 4 == 3  # the adapter's forced truncation
+        terms, mpc_sum, mpc_count, _, _ = group.step()
+        out.append(({name: array.copy() for name, array in group.buf.items()}, terms, mpc_sum, mpc_count))
+    return out
+
+
+def test_stages_give_the_results_in_turn() -> None:
+    """Observations, critic blocks, rewards, flags, outcomes and the summed terms match bit for bit."""
+    staged, in_turn = _group(True), _group(False)
+    assert staged._staged and not in_turn._staged
+    ours, theirs = _trace(staged, 20), _trace(in_turn, 20)
+    outcomes = np.array([buffers["outcome"] for buffers, *_ in ours])
+    assert {0, 1, 3} <= set(outcomes.ravel().tolist())  # running, successes and timeouts (resets)
+    for (buf_a, *sums_a), (buf_b, *sums_b) in zip(ours, theirs, strict=True):
+        for name in buf_a:
+            np.testing.assert_array_equal(buf_a[name], buf_b[name], err_msg=name)
+        assert sums_a == sums_b
+
+
+def test_a_failing_stage_names_its_environment() -> None:
+    """An exception in one environment's stage surfaces with that environment's index."""
+    group = _group(True)
+
+    def refuse(*args, **kwargs):
+        raise ValueError("planner refused")
+
+    group.envs[1].task.core.plan = refuse
+    with pytest.raises(ValueError, match="planner refused") as info:
+        group.step()
+    assert "(in environment 1)" in info.value.__notes__
+
+
+def test_each_environment_times_its_own_physics() -> None:
+    """The physics timer of a staged step leaves out the other environments' stages."""
+    group = _group(True, count=2)
+    plan = group.envs[1].task.core.plan
+
+    def slow_plan(*args, **kwargs):
+        time.sleep(0.2)
+        return plan(*args, **kwargs)
+
+    group.envs[1].task.core.plan = slow_plan
+    for env in group.envs:
+        env.task.timers["physics"] = 0.0
+    start = time.perf_counter()
+    group.step()
+    assert time.perf_counter() - start >= 0.2
+    assert all(0.0 < env.task.timers["physics"] < 0.1 for env in group.envs)
