@@ -61,10 +61,17 @@ def test_adapter_split_adds_up_to_the_measured_time() -> None:
 
 
 def test_envs_in_turn_step_every_environment() -> None:
-    """The no-adapter reference steps each of its environments once per block step."""
-    in_turn = _script().EnvsInTurn(load_task("stage1"), num_envs=3, steps=2, seed=0)
+    """The no-adapter reference steps each of its environments once per block step, in turn or in
+    stages, to the same states."""
+    script = _script()
+    in_turn = script.EnvsInTurn(load_task("stage1"), num_envs=3, steps=2, seed=0)
+    in_stages = script.EnvsInTurn(load_task("stage1"), num_envs=3, steps=2, seed=0, staged=True)
     try:
-        assert in_turn.block() == 6
+        assert in_turn.block() == in_stages.block() == 6
         assert len(in_turn.envs) == 3
+        for a, b in zip(in_turn.envs, in_stages.envs, strict=True):
+            np.testing.assert_array_equal(a.physics.data.qpos, b.physics.data.qpos)
+            np.testing.assert_array_equal(a.task.observation, b.task.observation)
     finally:
         in_turn.close()
+        in_stages.close()

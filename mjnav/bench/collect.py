@@ -253,6 +253,7 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
     benches: dict[str, CollectBench] = {}
     rates: dict[str, list[float]] = {"single": []}
     collection: dict[str, list[float]] = {label: [] for label in configs}
+    env_step: dict[str, list[float]] = {label: [] for label in configs}  # env steps/s of env.step alone
     try:
         with tempfile.TemporaryDirectory(prefix="mjnav-bench-collect-") as tmp:
             for k, (label, cfg) in enumerate(configs.items()):
@@ -264,18 +265,22 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
                         start = time.perf_counter()
                         rates["single"].append(single.block() / (time.perf_counter() - start))
                         continue
-                    before = benches[name].seconds["collection"]
+                    seconds = benches[name].seconds
+                    before = seconds["collection"], seconds["env.step"], seconds["steps"]
                     steps = benches[name].block()
-                    collection[name].append(steps / (benches[name].seconds["collection"] - before))
+                    collection[name].append(steps / (seconds["collection"] - before[0]))
+                    env_step[name].append(benches[name].train.num_envs * (seconds["steps"] - before[2])
+                                          / (seconds["env.step"] - before[1]))
     finally:
         single.env.close()
         for b in benches.values():
             b.close()
-    _print(config, train, opts, np.array(rates["single"]), {w: np.array(v) for w, v in collection.items()}, benches)
+    _print(config, train, opts, np.array(rates["single"]), {w: np.array(v) for w, v in collection.items()},
+           {w: np.array(v) for w, v in env_step.items()}, benches)
 
 
 def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray, collection: dict[str, np.ndarray],
-           benches: dict[str, CollectBench]) -> None:
+           env_step: dict[str, np.ndarray], benches: dict[str, CollectBench]) -> None:
     print(f"## {config.name}: {config.crowd.count} pedestrians; {train.num_envs} environments x "
           f"{train.steps_per_env} steps per iteration, {train.epochs} epochs x {train.minibatches} minibatches, "
           f"device {train.device}; medians of {opts.rounds} interleaved rounds (min-max)\n")
@@ -285,8 +290,7 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
           f"({single.min():,.0f}-{single.max():,.0f})\n")
     counts = list(collection)
     first = np.median(collection[counts[0]])
-    env_rates = {w: b.train.num_envs * b.seconds["steps"] / max(b.seconds["env.step"], 1e-9)
-                 for w, b in benches.items()}
+    env_rates = {w: np.median(values) for w, values in env_step.items()}
     print(f"| workers | collection, env steps/s | x {counts[0]} | env.step alone, env steps/s | "
           f"x {counts[0]} | x one environment | iteration incl. update, env steps/s |")
     print("|---|---|---|---|---|---|---|")
@@ -294,8 +298,10 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
         b = benches[w]
         steps = b.train.num_envs * b.train.steps_per_env * b.iterations
         whole = steps / max(b.seconds["collection"] + b.seconds["returns"] + b.seconds["update"], 1e-9)
+        alone = env_step[w]
         print(f"| {w} | {np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f}) | "
-              f"{np.median(values) / first:.2f} | {env_rates[w]:,.0f} | {env_rates[w] / env_rates[counts[0]]:.2f} | "
+              f"{np.median(values) / first:.2f} | {env_rates[w]:,.0f} ({alone.min():,.0f}-{alone.max():,.0f}) | "
+              f"{env_rates[w] / env_rates[counts[0]]:.2f} | "
               f"{env_rates[w] / one:.2f} | {whole:,.0f} |")
     print("\n| rollout step, ms (share) | " + " | ".join(STEP_PARTS) +
           " | whole step | worker processes' step: mean / longest | worker processes busy |")

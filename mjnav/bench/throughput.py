@@ -9,7 +9,8 @@ Prints, all from one run:
     steps/s and µs per part (physics = substeps incl. pedestrians and tracking force, lidar,
     region, action mapping, MPC, reward, observation, rest = composer and wrapper overhead);
   * ``num_envs`` such environments stepped in turn in this process without the adapter (what
-    the working set of many environments costs by itself);
+    the working set of many environments costs by itself), and stepped stage by stage as the
+    adapter's workers step them (:func:`mjnav.envs.workers.step_in_stages`);
   * the rsl-rl adapter (``NavVecEnv``) over ``num_envs`` environments (default: the training
     default, ``train.num_envs``) with each count of ``workers`` (default 1, 2 and all usable cores;
     ``workers=1,2,4,8,15`` on a 16-core machine; this process stepping the first block), and as
@@ -39,6 +40,7 @@ import numpy as np
 from mjnav.args import Grammar, Parsed
 from mjnav.config import TASK_SECTIONS, load_task
 from mjnav.envs.gym_env import NavGymEnv
+from mjnav.envs.workers import step_in_stages
 from mjnav.jobs import usable_cores
 from mjnav.schema import ConfigError
 from mjnav.timing import Block, time_rounds
@@ -154,21 +156,25 @@ class SingleEnv:
 
 
 class EnvsInTurn:
-    """``num_envs`` Gymnasium environments (task steps) stepped in turn in this process, no adapter."""
+    """``num_envs`` Gymnasium environments (task steps) stepped in this process, no adapter: in
+    turn, or stage by stage as the adapter's workers step them (``staged``, :func:`step_in_stages`)."""
 
-    def __init__(self, config, num_envs: int, steps: int, seed: int) -> None:
+    def __init__(self, config, num_envs: int, steps: int, seed: int, staged: bool = False) -> None:
         self.envs = [NavGymEnv(config) for _ in range(num_envs)]
         for i, env in enumerate(self.envs):
             env.reset(seed=seed + i)
-        self.steps, self.rng = steps, np.random.default_rng(seed)
+        self.steps, self.rng, self.staged = steps, np.random.default_rng(seed), staged
         self.block()  # warm-up
 
     def block(self) -> int:
         """``steps`` random-action steps of every environment (finished episodes are reset)."""
         for _ in range(self.steps):
             actions = self.rng.normal(size=(len(self.envs), 4)).astype(np.float32)
-            for env, action in zip(self.envs, actions, strict=True):
-                _, _, term, trunc, _ = env.step(action)
+            if self.staged:
+                results = step_in_stages(self.envs, list(actions))
+            else:
+                results = (env.step(action) for env, action in zip(self.envs, actions, strict=True))
+            for env, (_, _, term, trunc, _) in zip(self.envs, results, strict=True):
                 if term or trunc:
                     env.reset()
         return self.steps * len(self.envs)
@@ -263,9 +269,10 @@ def bench(config, opts: ThroughputOptions) -> None:
     closers = [single.env.close for single in singles.values()]
     vecs: dict[str, VecBench] = {}
     try:
-        in_turn = EnvsInTurn(config, num_envs, opts.vec_steps, seed)
-        blocks["in turn"] = in_turn.block
-        closers.append(in_turn.close)
+        for name, staged in (("in turn", False), ("in stages", True)):
+            envs = EnvsInTurn(config, num_envs, opts.vec_steps, seed, staged)
+            blocks[name] = envs.block
+            closers.append(envs.close)
         for label, workers, in_main in adapter_rows(parse_workers(opts.workers, num_envs)):
             vecs[label] = VecBench(config, num_envs, workers, opts.vec_steps, seed, in_main)
             blocks[label] = vecs[label].block
@@ -288,7 +295,7 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     bare = rates.pop("bare")
     periods = np.median(bare) / substeps  # control periods/s of bare physics
     singles = {name: rates.pop(f"single {name}") for name in parts}
-    in_turn = rates.pop("in turn")
+    in_turn = {name: rates.pop(name) for name in ("in turn", "in stages")}
 
     def spread(values: np.ndarray) -> str:
         return f"{np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f})"
@@ -303,9 +310,10 @@ def _print(config, rates: dict[str, np.ndarray], parts: dict[str, dict[str, floa
     for name, values in singles.items():
         print(f"| {_SINGLE_LABELS[name]} | {spread(values)} | {1e6 / np.median(values):.0f} | "
               f"{np.median(values) / periods:.3f} |")
-    print(f"| {num_envs} such environments in turn, this process, no adapter "
-          f"(x {np.median(in_turn) / np.median(singles['task']):.2f} one environment) | {spread(in_turn)} | "
-          f"{1e6 / np.median(in_turn):.0f} | {np.median(in_turn) / periods:.3f} |")
+    for name, values in in_turn.items():
+        print(f"| {num_envs} such environments {name}, this process, no adapter "
+              f"(x {np.median(values) / np.median(singles['task']):.2f} one environment) | {spread(values)} | "
+              f"{1e6 / np.median(values):.0f} | {np.median(values) / periods:.3f} |")
     names = list(parts)
     print("\n| part (us/step) | " + " | ".join(_SINGLE_LABELS[n] for n in names) + " |")
     print("|---|" + "---|" * len(names))

@@ -15,7 +15,7 @@ import signal
 import time
 import traceback
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from multiprocessing import forkserver
 from multiprocessing.connection import Connection
 from multiprocessing.shared_memory import SharedMemory
@@ -27,7 +27,7 @@ import numpy as np
 
 from mjnav.jobs import usable_cores
 
-__all__ = ["OUTCOMES", "EnvError", "usable_cores"]
+__all__ = ["OUTCOMES", "EnvError", "step_in_stages", "usable_cores"]
 
 OUTCOMES: tuple[str, ...] = ("running", "success", "collision", "timeout")
 """Outcome names; ``extras["outcomes"]`` holds their indices."""
@@ -153,29 +153,51 @@ class _EnvGroup:
                 raise
 
     def _in_stages(self, actions: np.ndarray) -> list[tuple]:
-        """Every environment's ``step`` result, stepping them stage by stage (``step_stages``):
-        the first stage of each, then the second ... (the results of :meth:`_in_turn`, faster: see
-        :meth:`mjnav.envs.environment.NavEnvironment.step_stages`)."""
-        stepping = [(k, env.step_stages(actions[i].copy())) for k, (i, env) in enumerate(zip(self.indices, self.envs))]
-        results: list[tuple] = [()] * len(stepping)
-        while stepping:
-            going = []
-            for k, stages in stepping:
-                try:
-                    next(stages)
-                    going.append((k, stages))
-                except StopIteration as done:
-                    results[k] = done.value
-                except Exception as exc:
-                    _blame(exc, self.indices[k])
-                    raise
-            stepping = going
-        return results
+        """Every environment's ``step`` result, stepping them stage by stage (:func:`step_in_stages`)."""
+        return step_in_stages(self.envs, [actions[i].copy() for i in self.indices], self.indices)
 
     def close(self) -> None:
         """Close every environment."""
         for env in self.envs:
             env.close()
+
+
+def step_in_stages(envs: list[Any], actions: list[np.ndarray], indices: Sequence[int] | None = None) -> list[tuple]:
+    """Step environments that offer ``step_stages`` (:meth:`mjnav.envs.gym_env.NavGymEnv.step_stages`)
+    stage by stage: the first stage of each, then the second ..., until every step has ended.
+
+    An environment's stages touch only its own state, so the results are those of stepping the
+    environments in turn; each stage's code and shared data stay in the cache across the
+    environments (:meth:`mjnav.envs.environment.NavEnvironment.step_stages`).
+
+    Args:
+        envs: The environments.
+        actions: One action per environment.
+        indices: The environments' indices for error notes (default: their positions).
+
+    Returns:
+        Each environment's ``step`` result ``(obs, reward, terminated, truncated, info)``.
+
+    Raises:
+        Exception: The first one a stage raises, noted with its environment's index; the other
+            environments are left within their step.
+    """
+    indices = range(len(envs)) if indices is None else indices
+    stepping = [(k, env.step_stages(action)) for k, (env, action) in enumerate(zip(envs, actions, strict=True))]
+    results: list[tuple] = [()] * len(stepping)
+    while stepping:
+        going = []
+        for k, stages in stepping:
+            try:
+                next(stages)
+                going.append((k, stages))
+            except StopIteration as done:
+                results[k] = done.value
+            except Exception as exc:
+                _blame(exc, indices[k])
+                raise
+        stepping = going
+    return results
 
 
 def _blame(exc: Exception, index: int) -> None:
