@@ -46,6 +46,7 @@ path; use ``env.unwrapped`` for the task, physics and config.
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 from typing import Any
 
 import gymnasium as gym
@@ -137,14 +138,15 @@ class BoundedNavGymEnv(NavGymEnv):
         obs, info = super().reset(seed=seed, options=options)
         return self._bound(obs), info
 
-    def step(self, action: Any):
-        """v1's step with :func:`raw_action` of ``action``.
+    def step_stages(self, action: Any) -> Generator[None, None, tuple]:
+        """v1's step (and :meth:`step`, which runs these stages) with :func:`raw_action` of
+        ``action``; the observation within the bounds.
 
         Raises:
             ValueError: For a NaN or a wrongly sized action (v1's check).
             RuntimeError: If the episode has ended (call ``reset()`` first).
         """
-        obs, reward, terminated, truncated, info = super().step(raw_action(action, self._kind))
+        obs, reward, terminated, truncated, info = yield from super().step_stages(raw_action(action, self._kind))
         return self._bound(obs), reward, terminated, truncated, info
 
     def _bound(self, obs: np.ndarray) -> np.ndarray:

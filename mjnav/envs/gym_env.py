@@ -108,6 +108,7 @@ class NavGymEnv(gym.Env):
         self._timing_info = timing_info
         self._task_steps = task_steps
         self._step_task = False  # decided at every reset
+        self._unfinished = False  # a step stopped part-way (see step_stages)
         self.config = resolve_config(task, overrides)
         self._env = make_env(self.config, seed=seed)
         self.task = self._env.task
@@ -139,13 +140,15 @@ class NavGymEnv(gym.Env):
             self.task.next_episode_seed = int(episode_seed)
         timestep = self._env.reset()
         self._step_task = self._task_steps and self._env.can_step_task()
+        self._unfinished = False
         return timestep.observation["observation"].copy(), self._info()
 
     def step(self, action):
         """One control step (0.1 s).
 
         Raises:
-            RuntimeError: If the episode has ended (call ``reset()`` first).
+            RuntimeError: If the episode has ended, or an earlier step did not finish (call
+                ``reset()`` first).
         """
         return run_stages(self.step_stages(action))
 
@@ -155,15 +158,26 @@ class NavGymEnv(gym.Env):
 
         The stages of a task step (:meth:`mjnav.envs.environment.NavEnvironment.step_stages`), or
         one stage holding composer's whole step. The action is checked at the first ``next()``.
+        A step whose stages stop after the first (one raised, or the generator was dropped) leaves
+        the world part-way through a control period: the next step raises until ``reset()``.
+        Subclasses change a step here, not in :meth:`step` (:attr:`stages_are_step`).
         """
         if self.task.layout is None or self.task.outcome.done:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
+        if self._unfinished:
+            raise RuntimeError("an earlier step stopped part-way (it raised, or its stages were not all run): "
+                               "call reset() before step()")
         try:
             action = np.asarray(action, dtype=np.float32)
         except (TypeError, ValueError):
             raise ValueError(f"action: expected {self.action_space.shape[0]} numbers, got {action!r}") from None
         if self._step_task:
-            yield from self._env.step_stages(action)
+            stages = self._env.step_stages(action)
+            next(stages)  # the before-step hook: a bad action is refused before anything changes
+            self._unfinished = True
+            yield
+            yield from stages
+            self._unfinished = False
             obs, reward = self.task.observation, float(self.task.get_reward(None))
         else:
             timestep = self._env.step(action)
@@ -172,6 +186,13 @@ class NavGymEnv(gym.Env):
         terminated = outcome.terminal
         truncated = outcome.done and not terminated
         return obs, reward, terminated, truncated, self._info()
+
+    @property
+    def stages_are_step(self) -> bool:
+        """Whether :meth:`step_stages` does what :meth:`step` does: ``step`` is not overridden (by a
+        subclass or on the instance), so stepping stage by stage (:func:`mjnav.envs.workers.step_in_stages`)
+        skips nothing."""
+        return type(self).step is NavGymEnv.step and "step" not in vars(self)
 
     def _info(self) -> dict[str, Any]:
         record = self.task.core.record

@@ -69,15 +69,14 @@ def _views(buffer: Any, layout: dict[str, tuple]) -> dict[str, np.ndarray]:
 class _EnvGroup:
     """The environments of one worker, stepping into (shared) numpy buffers.
 
-    Environments that offer ``step_stages`` (:class:`mjnav.envs.gym_env.NavGymEnv`) are stepped
-    stage by stage, the others in turn; the results are the same.
+    Environments that offer ``step_stages`` (:class:`mjnav.envs.gym_env.NavGymEnv`; :attr:`staged`)
+    are stepped stage by stage, the others in turn; the results are the same.
     """
 
     def __init__(self, env_fn: EnvFn, indices: range, seed: int) -> None:
         self.indices = indices
         self.seed = seed
         self.envs = [env_fn(i) for i in indices]
-        self._staged = all(hasattr(env, "step_stages") for env in self.envs)  # NavGymEnv, not wrapped
         self.buf: dict[str, np.ndarray] = {}
         self._seeded = False
 
@@ -122,7 +121,7 @@ class _EnvGroup:
         buf = self.buf
         actions, force, outcomes = buf["actions"], buf["force"], buf["outcome"]
         observations, rewards, terminated_buf, truncated_buf = buf["obs"], buf["rewards"], buf["terminated"], buf["truncated"]
-        steps = self._in_stages(actions) if self._staged else self._in_turn(actions)
+        steps = self._in_stages(actions) if self.staged else self._in_turn(actions)
         for i, env, (obs, reward, terminated, truncated, info) in zip(self.indices, self.envs, steps, strict=True):
             try:
                 for name, value in info.get("reward_terms", {}).items():  # plain dict sums: cheaper than Counter
@@ -142,6 +141,12 @@ class _EnvGroup:
                 _blame(exc, i)
                 raise
         return Counter(terms), Counter(mpc_sum), Counter(mpc_count), time.perf_counter() - start, time.thread_time() - cpu
+
+    @property
+    def staged(self) -> bool:
+        """Whether every environment steps as well stage by stage: it has ``step_stages`` and says
+        its ``stages_are_step`` (:class:`mjnav.envs.gym_env.NavGymEnv`, not wrapped, ``step`` not overridden)."""
+        return all(getattr(env, "stages_are_step", False) for env in self.envs)
 
     def _in_turn(self, actions: np.ndarray) -> Iterator[tuple]:
         """Each environment's ``step`` result, stepping it only when asked for it."""
@@ -165,6 +170,7 @@ class _EnvGroup:
 def step_in_stages(envs: list[Any], actions: list[np.ndarray], indices: Sequence[int] | None = None) -> list[tuple]:
     """Step environments that offer ``step_stages`` (:meth:`mjnav.envs.gym_env.NavGymEnv.step_stages`)
     stage by stage: the first stage of each, then the second ..., until every step has ended.
+    Only for environments whose ``step`` runs exactly those stages (``stages_are_step``).
 
     An environment's stages touch only its own state, so the results are those of stepping the
     environments in turn; each stage's code and shared data stay in the cache across the

@@ -8,8 +8,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from mjnav.envs.bounded import BoundedNavGymEnv
 from mjnav.envs.gym_env import NavGymEnv
-from mjnav.envs.workers import _EnvGroup, _layout, _views
+from mjnav.envs.workers import _EnvGroup, _layout, _views, step_in_stages
 
 #: Short episodes (timeouts), a wide goal (successes), a privileged critic block and a crowd.
 OVERRIDES = ["timing.episode_steps=6", "reward.goal_tolerance=5.0", "observation.critic_pedestrians=2", "crowd.count=6"]
@@ -19,9 +20,9 @@ class InTurn(gym.Wrapper):
     """A NavGymEnv without ``step_stages`` (wrappers do not forward it): the group steps it in turn."""
 
 
-def _group(staged: bool, count: int = 3) -> _EnvGroup:
+def _group(staged: bool, count: int = 3, cls: type = NavGymEnv) -> _EnvGroup:
     def make(index: int) -> gym.Env:
-        env = NavGymEnv("stage5", overrides=OVERRIDES)
+        env = cls("stage5", overrides=OVERRIDES)
         return env if staged else InTurn(env)
 
     group = _EnvGroup(make, range(count), seed=11)
@@ -33,11 +34,12 @@ def _group(staged: bool, count: int = 3) -> _EnvGroup:
     return group
 
 
-def _trace(group: _EnvGroup, steps: int) -> list:
+def _trace(group: _EnvGroup, steps: int, scale: float = 3.0) -> list:
     rng = np.random.default_rng(5)
     out = []
     for k in range(steps):
-        group.buf["actions"][:] = 3.0 * rng.normal(size=group.buf["actions"].shape)
+        group.buf["actions"][:] = np.clip(scale * rng.normal(size=group.buf["actions"].shape), -1.0, 1.0) \
+            if scale < 1.0 else scale * rng.normal(size=group.buf["actions"].shape)
         group.buf["force"][:] = False
         group.buf["force"][1] = k % 4 == 3  # the adapter's forced truncation
         terms, mpc_sum, mpc_count, _, _ = group.step()
@@ -45,11 +47,14 @@ def _trace(group: _EnvGroup, steps: int) -> list:
     return out
 
 
-def test_stages_give_the_results_in_turn() -> None:
-    """Observations, critic blocks, rewards, flags, outcomes and the summed terms match bit for bit."""
-    staged, in_turn = _group(True), _group(False)
-    assert staged._staged and not in_turn._staged
-    ours, theirs = _trace(staged, 20), _trace(in_turn, 20)
+@pytest.mark.parametrize("cls", [NavGymEnv, BoundedNavGymEnv])
+def test_stages_give_the_results_in_turn(cls: type) -> None:
+    """Observations, critic blocks, rewards, flags, outcomes and the summed terms match bit for bit
+    (also for the bounded v2 environment, whose actions are mapped and observations clipped)."""
+    staged, in_turn = _group(True, cls=cls), _group(False, cls=cls)
+    assert staged.staged and not in_turn.staged
+    scale = 0.9 if cls is BoundedNavGymEnv else 3.0
+    ours, theirs = _trace(staged, 20, scale), _trace(in_turn, 20, scale)
     outcomes = np.array([buffers["outcome"] for buffers, *_ in ours])
     assert {0, 1, 3} <= set(outcomes.ravel().tolist())  # running, successes and timeouts (resets)
     for (buf_a, *sums_a), (buf_b, *sums_b) in zip(ours, theirs, strict=True):
@@ -87,3 +92,51 @@ def test_each_environment_times_its_own_physics() -> None:
     group.step()
     assert time.perf_counter() - start >= 0.2
     assert all(0.0 < env.task.timers["physics"] < 0.1 for env in group.envs)
+
+
+def test_an_overridden_step_is_stepped_in_turn() -> None:
+    """A subclass (or instance) whose ``step`` differs from its stages is never stepped in stages."""
+
+    class Halved(NavGymEnv):
+        def step(self, action):
+            return super().step(0.5 * np.asarray(action))
+
+    assert not _group(True, count=1, cls=Halved).staged
+    group = _group(True, count=2)
+    group.envs[1].step = lambda action: NavGymEnv.step(group.envs[1], action)
+    assert not group.staged
+
+
+def test_a_step_stopped_part_way_must_be_reset() -> None:
+    """After one environment's stage raises, those left within their step refuse to step until
+    reset; the one whose action was refused before anything changed, and those not yet started,
+    step on."""
+    envs = [NavGymEnv("stage5", seed=k) for k in range(3)]
+    for env in envs:
+        env.reset(seed=7)
+    actions = [np.zeros(4, np.float32), np.full(4, np.nan, np.float32), np.zeros(4, np.float32)]
+    with pytest.raises(ValueError, match="finite") as info:
+        step_in_stages(envs, actions)
+    assert "(in environment 1)" in info.value.__notes__
+    with pytest.raises(RuntimeError, match="part-way"):
+        envs[0].step(np.zeros(4, np.float32))  # its first stage ran: the crowd moved on, the physics did not
+    for k in (1, 2):
+        envs[k].step(np.zeros(4, np.float32))
+    twin = NavGymEnv("stage5", seed=0)
+    for env in (envs[0], twin):
+        env.reset(seed=7)
+    np.testing.assert_array_equal(envs[0].step(np.zeros(4, np.float32))[0], twin.step(np.zeros(4, np.float32))[0])
+
+
+def test_a_dropped_step_must_be_reset() -> None:
+    """Stages left unfinished (the generator dropped after its first stage) count as a stopped step."""
+    env = NavGymEnv("stage5", seed=0)
+    env.reset(seed=3)
+    stages = env.step_stages(np.zeros(4, np.float32))
+    next(stages)
+    next(stages)
+    del stages
+    with pytest.raises(RuntimeError, match="part-way"):
+        env.step(np.zeros(4, np.float32))
+    env.reset(seed=3)
+    assert len(env.step(np.zeros(4, np.float32))) == 5
