@@ -109,6 +109,7 @@ class NavGymEnv(gym.Env):
         self._task_steps = task_steps
         self._step_task = False  # decided at every reset
         self._unfinished = False  # a step stopped part-way (see step_stages)
+        self._episodes = 0  # resets so far (a step's stages refuse to go on past one)
         self.config = resolve_config(task, overrides)
         self._env = make_env(self.config, seed=seed)
         self.task = self._env.task
@@ -141,6 +142,7 @@ class NavGymEnv(gym.Env):
         timestep = self._env.reset()
         self._step_task = self._task_steps and self._env.can_step_task()
         self._unfinished = False
+        self._episodes += 1
         return timestep.observation["observation"].copy(), self._info()
 
     def step(self, action):
@@ -157,10 +159,11 @@ class NavGymEnv(gym.Env):
         ``StopIteration`` carrying :meth:`step`'s return value (:func:`run_stages` runs them all).
 
         The stages of a task step (:meth:`mjnav.envs.environment.NavEnvironment.step_stages`), or
-        one stage holding composer's whole step. The action is checked at the first ``next()``.
-        A step whose stages stop after the first (one raised, or the generator was dropped) leaves
-        the world part-way through a control period: the next step raises until ``reset()``.
-        Subclasses change a step here, not in :meth:`step` (:attr:`stages_are_step`).
+        one stage holding composer's whole step. The action is checked at the first ``next()``; a
+        refused action changes nothing. A step that stops once its action was taken (a stage
+        raised, or the generator was dropped) may leave the world part-way through a control
+        period: the next step raises until ``reset()``, and the stages of a step cannot go on
+        past a reset. Subclasses change a step here, not in :meth:`step` (:attr:`stages_are_step`).
         """
         if self.task.layout is None or self.task.outcome.done:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
@@ -171,17 +174,18 @@ class NavGymEnv(gym.Env):
             action = np.asarray(action, dtype=np.float32)
         except (TypeError, ValueError):
             raise ValueError(f"action: expected {self.action_space.shape[0]} numbers, got {action!r}") from None
+        self.task.check_action(action)  # a refused action changes nothing
+        self._unfinished, episode = True, self._episodes
         if self._step_task:
-            stages = self._env.step_stages(action)
-            next(stages)  # the before-step hook: a bad action is refused before anything changes
-            self._unfinished = True
-            yield
-            yield from stages
-            self._unfinished = False
+            for _ in self._env.step_stages(action):
+                yield
+                if self._episodes != episode:
+                    raise RuntimeError("the environment was reset within this step: its other stages cannot run")
             obs, reward = self.task.observation, float(self.task.get_reward(None))
         else:
             timestep = self._env.step(action)
             obs, reward = timestep.observation["observation"].copy(), float(timestep.reward)
+        self._unfinished = False
         outcome = self.task.outcome
         terminated = outcome.terminal
         truncated = outcome.done and not terminated

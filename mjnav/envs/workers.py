@@ -146,7 +146,7 @@ class _EnvGroup:
     def staged(self) -> bool:
         """Whether every environment steps as well stage by stage: it has ``step_stages`` and says
         its ``stages_are_step`` (:class:`mjnav.envs.gym_env.NavGymEnv`, not wrapped, ``step`` not overridden)."""
-        return all(getattr(env, "stages_are_step", False) for env in self.envs)
+        return all(_stages_are_step(env) for env in self.envs)
 
     def _in_turn(self, actions: np.ndarray) -> Iterator[tuple]:
         """Each environment's ``step`` result, stepping it only when asked for it."""
@@ -165,6 +165,12 @@ class _EnvGroup:
         """Close every environment."""
         for env in self.envs:
             env.close()
+
+
+def _stages_are_step(env: Any) -> bool:
+    """Whether ``env`` itself (its class, not an object it forwards attributes to) offers
+    ``stages_are_step`` and it holds."""
+    return hasattr(type(env), "stages_are_step") and bool(env.stages_are_step)
 
 
 def step_in_stages(envs: list[Any], actions: list[np.ndarray], indices: Sequence[int] | None = None) -> list[tuple]:

@@ -238,8 +238,8 @@ class NavCore:
         return polygon, (state if self.design.name == "ours" else state[self._columns])
 
     # ------------------------------------------------------------------ action
-    def plan(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
-        """Map a raw action (``design.action_size`` values) to the jerk over the next period (m/s³).
+    def check_action(self, action: np.ndarray) -> np.ndarray:
+        """The raw action as ``design.action_size`` float64 values (what :meth:`plan` reads).
 
         Raises:
             ValueError: If the action has the wrong shape or a non-finite value.
@@ -248,6 +248,15 @@ class NavCore:
         size = self.design.action_size
         if action.shape != (size,) or not all(map(math.isfinite, action.tolist())):
             raise ValueError(f"action must be {size} finite values ({self.design.name}), got {action!r}")
+        return action
+
+    def plan(self, action: np.ndarray, position: np.ndarray, velocity: np.ndarray, accel: np.ndarray) -> np.ndarray:
+        """Map a raw action (``design.action_size`` values) to the jerk over the next period (m/s³).
+
+        Raises:
+            ValueError: If the action has the wrong shape or a non-finite value.
+        """
+        action = self.check_action(action)
         (px, py), (gx, gy) = position.tolist(), self._goal
         motion = [*velocity.tolist(), *accel.tolist(), gx - px, gy - py]
         if not all(map(math.isfinite, motion)):  # checked once here, so the action layer need not

@@ -119,6 +119,12 @@ class CrowdNavTask(composer.Task):
         """
         return self.core.tracks
 
+    def check_action(self, action) -> None:
+        """Raises ``ValueError`` for an action :meth:`before_step` would refuse (:meth:`NavCore.check_action`;
+        none while a planner acts), before anything changes."""
+        if self.planner is None:
+            self.core.check_action(action)
+
     def before_step(self, physics, action, random_state) -> None:
         """Turn the action into a jerk command for the coming control period."""
         del random_state

@@ -140,3 +140,59 @@ def test_a_dropped_step_must_be_reset() -> None:
         env.step(np.zeros(4, np.float32))
     env.reset(seed=3)
     assert len(env.step(np.zeros(4, np.float32))) == 5
+
+
+def test_a_forwarding_wrapper_is_stepped_in_turn() -> None:
+    """A wrapper that forwards attribute reads to the environment (old gym style) does not pass
+    for one that steps in stages: its own ``step`` runs."""
+
+    class Forwarding(gym.Wrapper):
+        def __getattr__(self, name):
+            return getattr(self.env, name)
+
+        def step(self, action):
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            return obs, 100.0 * reward, terminated, truncated, info
+
+    group = _EnvGroup(lambda i: Forwarding(NavGymEnv("stage5", overrides=OVERRIDES)), range(1), seed=11)
+    assert group.envs[0].stages_are_step and not group.staged
+
+
+@pytest.mark.parametrize("task_steps", [True, False])
+def test_a_step_that_raised_after_taking_its_action_must_be_reset(task_steps: bool) -> None:
+    """Through the task's stages or composer's step: a failure once the action was taken (here in
+    the crowd's advance, inside the first stage, and in the after-step hook) leaves the step
+    refused until reset; a refused action does not."""
+    env = NavGymEnv("stage5", seed=0, task_steps=task_steps)
+    env.reset(seed=3)
+    assert env._step_task is task_steps
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.full(4, np.nan, np.float32))
+    env.step(np.zeros(4, np.float32))  # still usable
+    for part, owner in (("apply_command", env.task.sim), ("score", env.task)):
+        original = getattr(owner, part)
+
+        def fail(*args, **kwargs):
+            raise FloatingPointError(f"{part} failed")
+
+        setattr(owner, part, fail)
+        with pytest.raises(FloatingPointError, match=part):
+            env.step(np.zeros(4, np.float32))
+        setattr(owner, part, original)
+        with pytest.raises(RuntimeError, match="part-way"):
+            env.step(np.zeros(4, np.float32))
+        env.reset(seed=3)
+        env.step(np.zeros(4, np.float32))
+
+
+def test_the_stages_of_a_step_do_not_go_on_past_a_reset() -> None:
+    """A step's generator kept across ``reset()`` refuses to run its other stages on the new episode."""
+    env = NavGymEnv("stage5", seed=0)
+    env.reset(seed=3)
+    stages = env.step_stages(np.zeros(4, np.float32))
+    next(stages)
+    env.reset(seed=3)
+    with pytest.raises(RuntimeError, match="reset within this step"):
+        next(stages)
+    assert env.task.core.steps == 0
+    assert len(env.step(np.zeros(4, np.float32))) == 5
