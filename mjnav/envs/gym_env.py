@@ -38,6 +38,8 @@ Version History:
     standard RL clients (Stable-Baselines3, Gymnasium's ``RescaleAction``): actions
     ``Box(-1, 1)`` = 2·(α_s, β_s, α_l, β_l) − 1, observations within bounds from the config;
     the same episodes as v1 (:mod:`mjnav.envs.bounded`; the env card of the documentation).
+    2026-12-07, both, same episodes: :meth:`NavGymEnv.step_stages`; a step that raised after its
+    action was accepted makes the next ``step`` raise until ``reset()``.
 """
 
 from __future__ import annotations
