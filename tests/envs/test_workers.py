@@ -35,11 +35,13 @@ def _group(staged: bool, count: int = 3, cls: type = NavGymEnv) -> _EnvGroup:
 
 
 def _trace(group: _EnvGroup, steps: int, scale: float = 3.0) -> list:
+    """Buffers and sums of ``steps`` group steps with ``scale``·N(0, 1) actions (clipped to [-1, 1]
+    when ``scale`` < 1, for the bounded environment)."""
     rng = np.random.default_rng(5)
     out = []
     for k in range(steps):
-        group.buf["actions"][:] = np.clip(scale * rng.normal(size=group.buf["actions"].shape), -1.0, 1.0) \
-            if scale < 1.0 else scale * rng.normal(size=group.buf["actions"].shape)
+        raw = scale * rng.normal(size=group.buf["actions"].shape)
+        group.buf["actions"][:] = np.clip(raw, -1.0, 1.0) if scale < 1.0 else raw
         group.buf["force"][:] = False
         group.buf["force"][1] = k % 4 == 3  # the adapter's forced truncation
         terms, mpc_sum, mpc_count, _, _ = group.step()
