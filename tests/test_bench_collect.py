@@ -34,8 +34,8 @@ def test_step_parts_add_up_to_the_collection_time(tmp_path) -> None:
 
 
 def test_policy_env_leaves_the_runner_as_it_was(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The policy-driven single environment takes the policy's sampled actions, times only the
-    environment and leaves the global torch stream and the actor's distribution as they were."""
+    """The policy-driven single environment replays the policy's sampled actions, timed without
+    the policy, and leaves the global torch stream and the actor's distribution as they were."""
     import torch
 
     train = dataclasses.replace(load_train(TINY), workers=1)
@@ -54,8 +54,23 @@ def test_policy_env_leaves_the_runner_as_it_was(tmp_path, monkeypatch: pytest.Mo
         assert torch.equal(torch.get_rng_state(), rng)
         assert all(vars(actor.distribution)[k] is v for k, v in kept.items())
         assert len({a.tobytes() for a in seen}) == 6 and all(a.shape == (4,) for a in seen)
+        assert np.array_equal(driven.play.unwrapped.physics.data.qpos, driven.env.unwrapped.physics.data.qpos)
     finally:
-        driven.env.close()
+        driven.close()
+        bench.close()
+
+
+def test_policy_env_refuses_a_replay_that_leaves_the_episodes(tmp_path) -> None:
+    """A replay that does not reproduce the played episodes is an error, not a silently other workload."""
+    train = dataclasses.replace(load_train(TINY), workers=1)
+    bench = collect.CollectBench(load_task("stage1"), train, str(tmp_path))
+    driven = collect.PolicyEnv(load_task("stage1"), bench.runner, 4, seed=3)
+    try:
+        driven.env.step(np.zeros(4, np.float32))  # the timed copy one step ahead
+        with pytest.raises(RuntimeError, match="did not reproduce"):
+            driven.block()
+    finally:
+        driven.close()
         bench.close()
 
 

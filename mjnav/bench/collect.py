@@ -215,43 +215,71 @@ class PolicyEnv:
 
     It then does the work the runner's environments do: the same kind of episodes, so the same
     share of resets (a reset costs about four steps, and an untrained policy's stage-7 episodes
-    last about 20 steps against about 90 under random actions). Each block uses the policy's
-    current weights, then puts back the actor's distribution of the runner's last rollout step;
-    actions are sampled from a torch stream of its own (the global one is restored), so the
-    runner's rollouts do not change. Only ``step`` and ``reset`` are timed.
+    last about 20 steps against about 90 under random actions). The policy must not run between
+    the timed steps: a batch-of-one forward pass per step evicts the environment's data from the
+    cache (measured: 0.76x the random-action rate), where the runner's one pass serves all its
+    environments. So each block first plays ``steps`` steps with the policy on one copy of the
+    environment, untimed, then replays those actions on a second copy seeded alike, timed; the
+    environment is deterministic, so the replay follows the same episodes (checked: the two
+    copies must end on the same observation).
+
+    The policy runs with its current weights; the actor's distribution of the runner's last
+    rollout step is put back and actions come from a torch stream of its own (the global one is
+    restored), so the runner's rollouts do not change.
     """
 
     def __init__(self, config, runner: Any, steps: int, seed: int) -> None:
-        self.env = NavGymEnv(config, seed=seed)
+        self.play, self.env = NavGymEnv(config, seed=seed), NavGymEnv(config, seed=seed)
         self.runner, self.steps, self.seed = runner, steps, seed
-        self.device = runner.device
-        self.obs, _ = self.env.reset(seed=seed)
+        self.obs, _ = self.play.reset(seed=seed)
+        self.env.reset(seed=seed)
         self.blocks = 0
         self.block()  # warm-up
 
     def block(self) -> tuple[int, float]:
-        """``steps`` control steps with the policy's sampled actions; returns them and their seconds."""
+        """``steps`` control steps of the policy's episodes; returns them and the replay's seconds.
+
+        Raises:
+            RuntimeError: The replay left the played episodes (the environment is not deterministic).
+        """
+        actions = self._play()
+        env = self.env
+        start = time.perf_counter()
+        for action in actions:
+            obs, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                obs, _ = env.reset()
+        seconds = time.perf_counter() - start
+        if not np.array_equal(obs, self.obs):
+            raise RuntimeError("the replayed actions did not reproduce the policy's episodes")
+        return self.steps, seconds
+
+    def _play(self) -> list[np.ndarray]:
+        """``steps`` steps of the policy on the untimed copy; the actions it took."""
         import torch  # deferred: as in CollectBench (loaded there already)
         from tensordict import TensorDict  # deferred: comes with torch
 
-        actor = self.runner.alg.actor
+        actor, device = self.runner.alg.actor, self.runner.device
         kept = dict(vars(actor.distribution))  # its last rollout step's distribution, put back below
-        env, obs, seconds = self.env, self.obs, 0.0
+        obs, actions = self.obs, []
         try:
             with torch.random.fork_rng(devices=[]), torch.inference_mode():
                 torch.manual_seed(self.seed + self.blocks)
                 for _ in range(self.steps):
-                    groups = TensorDict({"policy": torch.from_numpy(obs)[None]}, batch_size=[1], device=self.device)
-                    action = actor(groups, stochastic_output=True)[0].cpu().numpy()
-                    start = time.perf_counter()
-                    obs, _, terminated, truncated, _ = env.step(action)
+                    groups = TensorDict({"policy": torch.from_numpy(obs)[None]}, batch_size=[1], device=device)
+                    actions.append(actor(groups, stochastic_output=True)[0].cpu().numpy())
+                    obs, _, terminated, truncated, _ = self.play.step(actions[-1])
                     if terminated or truncated:
-                        obs, _ = env.reset()
-                    seconds += time.perf_counter() - start
+                        obs, _ = self.play.reset()
         finally:
             vars(actor.distribution).update(kept)
         self.obs, self.blocks = obs, self.blocks + 1
-        return self.steps, seconds
+        return actions
+
+    def close(self) -> None:
+        """Close both copies."""
+        self.play.close()
+        self.env.close()
 
 
 def run(parsed: Parsed, argv: list[str]) -> int:
@@ -322,7 +350,7 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
     finally:
         single.env.close()
         if driven is not None:
-            driven.env.close()
+            driven.close()
         for b in benches.values():
             b.close()
     _print(config, train, opts, {k: np.array(v) for k, v in singles.items()},
