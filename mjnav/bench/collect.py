@@ -6,17 +6,14 @@
 Builds one training runner (:func:`mjnav.train.runner.build_runner`, the adapter of
 ``train.num_envs`` environments, rsl-rl's PPO) per worker count in ``workers`` (and, with 2 or
 more workers, per trainer share in ``main_envs``: ``train.main_envs``; and per setting in
-``pipeline``: ``train.pipeline``) and one environment alone, twice, then times them in
-``rounds`` interleaved rounds (each round: one PPO iteration of every runner, ``single_steps``
-steps of each single environment, in alternating order; :mod:`mjnav.timing`). One single
-environment takes random actions; the other the actions the first runner's policy samples
-(:class:`PolicyEnv`), so it has the runner's kind of episodes and share of resets, which random
-actions do not (stage 7: about 90 steps per episode under random actions, about 20 under an
-untrained policy; a reset costs about four steps). Prints, with medians over rounds:
+``pipeline``: ``train.pipeline``) and one environment alone, then times them in ``rounds``
+interleaved rounds (each round: one PPO iteration of every runner, ``single_steps``
+random-action steps of the single environment, in alternating order; :mod:`mjnav.timing`).
+Prints, with medians over rounds:
 
 * steps/s: collection (the rollout loop), the adapter's ``env.step`` alone (comparable with the
   single environment), the whole iteration (collection and update), and their ratios to 1
-  worker and to each single environment (the policy-driven one is the like-for-like reference);
+  worker and to the single environment;
 * where one rollout step (all environments) goes, ms: the trainer's policy inference
   (``alg.act``; with the pipeline also the dispatch of the actions and the previous step's
   storage and logger, so that the storage and logger columns then hold only their hand-over), then inside ``env.step`` this process's own block, its wait for the worker
@@ -55,7 +52,6 @@ import numpy as np
 from mjnav.args import Grammar, Parsed
 from mjnav.bench.throughput import SingleEnv, parse_workers
 from mjnav.config import TASK_SECTIONS, load_task
-from mjnav.envs.gym_env import NavGymEnv
 from mjnav.jobs import usable_cores
 from mjnav.schema import ConfigError
 from mjnav.train.config import TrainConfig, load_train
@@ -210,78 +206,6 @@ class CollectBench:
         self.env.close()
 
 
-class PolicyEnv:
-    """One environment alone, stepped with the actions a training runner's policy samples.
-
-    It then does the work the runner's environments do: the same kind of episodes, so the same
-    share of resets (a reset costs about four steps, and an untrained policy's stage-7 episodes
-    last about 20 steps against about 90 under random actions). The policy must not run between
-    the timed steps: a batch-of-one forward pass per step evicts the environment's data from the
-    cache (measured: 0.76x the random-action rate), where the runner's one pass serves all its
-    environments. So each block first plays ``steps`` steps with the policy on one copy of the
-    environment, untimed, then replays those actions on a second copy seeded alike, timed; the
-    environment is deterministic, so the replay follows the same episodes (checked: the two
-    copies must end on the same observation).
-
-    The policy runs with its current weights; the actor's distribution of the runner's last
-    rollout step is put back and actions come from a torch stream of its own (the global one is
-    restored), so the runner's rollouts do not change.
-    """
-
-    def __init__(self, config, runner: Any, steps: int, seed: int) -> None:
-        self.play, self.env = NavGymEnv(config, seed=seed), NavGymEnv(config, seed=seed)
-        self.runner, self.steps, self.seed = runner, steps, seed
-        self.obs, _ = self.play.reset(seed=seed)
-        self.env.reset(seed=seed)
-        self.blocks = 0
-        self.block()  # warm-up
-
-    def block(self) -> tuple[int, float]:
-        """``steps`` control steps of the policy's episodes; returns them and the replay's seconds.
-
-        Raises:
-            RuntimeError: The replay left the played episodes (the environment is not deterministic).
-        """
-        actions = self._play()
-        env = self.env
-        start = time.perf_counter()
-        for action in actions:
-            obs, _, terminated, truncated, _ = env.step(action)
-            if terminated or truncated:
-                obs, _ = env.reset()
-        seconds = time.perf_counter() - start
-        if not np.array_equal(obs, self.obs):
-            raise RuntimeError("the replayed actions did not reproduce the policy's episodes")
-        return self.steps, seconds
-
-    def _play(self) -> list[np.ndarray]:
-        """``steps`` steps of the policy on the untimed copy; the actions it took."""
-        import torch  # deferred: as in CollectBench (loaded there already)
-        from tensordict import TensorDict  # deferred: comes with torch
-
-        actor, device = self.runner.alg.actor, self.runner.device
-        kept = dict(vars(actor.distribution))  # its last rollout step's distribution, put back below
-        obs, actions = self.obs, []
-        try:
-            with torch.random.fork_rng(devices=[]), torch.inference_mode():
-                torch.manual_seed(self.seed + self.blocks)
-                for _ in range(self.steps):
-                    groups = TensorDict({"policy": torch.from_numpy(obs)[None]}, batch_size=[1], device=device)
-                    actions.append(actor(groups, stochastic_output=True)[0].cpu().numpy())
-                    obs, _, terminated, truncated, _ = self.play.step(actions[-1])
-                    if terminated or truncated:
-                        obs, _ = self.play.reset()
-        finally:
-            vars(actor.distribution).update(kept)
-        self.obs, self.blocks = obs, self.blocks + 1
-        return actions
-
-    def close(self) -> None:
-        """Close both copies."""
-        self.play.close()
-        self.env.close()
-
-
 def run(parsed: Parsed, argv: list[str]) -> int:
     """Benchmark; a bad task, override or value is one error line (exit code 2)."""
     try:
@@ -327,63 +251,49 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
     train = next(iter(configs.values()))
     single = SingleEnv(config, opts.single_steps, train.seed)
     benches: dict[str, CollectBench] = {}
-    driven: PolicyEnv | None = None
-    singles: dict[str, list[float]] = {"random": [], "policy": []}
+    rates: dict[str, list[float]] = {"single": []}
     collection: dict[str, list[float]] = {label: [] for label in configs}
     env_step: dict[str, list[float]] = {label: [] for label in configs}  # env steps/s of env.step alone
     try:
         with tempfile.TemporaryDirectory(prefix="mjnav-bench-collect-") as tmp:
             for k, (label, cfg) in enumerate(configs.items()):
                 benches[label] = CollectBench(config, cfg, f"{tmp}/{k}")
-            driven = PolicyEnv(config, next(iter(benches.values())).runner, opts.single_steps, train.seed)
-            names: list[Any] = ["random", "policy", *configs]
+            names: list[Any] = ["single", *configs]
             for r in range(opts.rounds):
                 for name in names if r % 2 == 0 else names[::-1]:
-                    if name == "random":
+                    if name == "single":
                         start = time.perf_counter()
-                        singles["random"].append(single.block() / (time.perf_counter() - start))
-                    elif name == "policy":
-                        steps, seconds = driven.block()
-                        singles["policy"].append(steps / seconds)
-                    else:
-                        _time_iteration(benches[name], collection[name], env_step[name])
+                        rates["single"].append(single.block() / (time.perf_counter() - start))
+                        continue
+                    seconds = benches[name].seconds
+                    before = seconds["collection"], seconds["env.step"], seconds["steps"]
+                    steps = benches[name].block()
+                    collection[name].append(steps / (seconds["collection"] - before[0]))
+                    env_step[name].append(benches[name].train.num_envs * (seconds["steps"] - before[2])
+                                          / (seconds["env.step"] - before[1]))
     finally:
         single.env.close()
-        if driven is not None:
-            driven.close()
         for b in benches.values():
             b.close()
-    _print(config, train, opts, {k: np.array(v) for k, v in singles.items()},
-           {w: np.array(v) for w, v in collection.items()}, {w: np.array(v) for w, v in env_step.items()}, benches)
+    _print(config, train, opts, np.array(rates["single"]), {w: np.array(v) for w, v in collection.items()},
+           {w: np.array(v) for w, v in env_step.items()}, benches)
 
 
-def _time_iteration(bench: CollectBench, collection: list[float], env_step: list[float]) -> None:
-    """One PPO iteration of ``bench``; appends its collection rate and its ``env.step`` rate, env steps/s."""
-    seconds = bench.seconds
-    before = seconds["collection"], seconds["env.step"], seconds["steps"]
-    steps = bench.block()
-    collection.append(steps / (seconds["collection"] - before[0]))
-    env_step.append(bench.train.num_envs * (seconds["steps"] - before[2]) / (seconds["env.step"] - before[1]))
-
-
-def _print(config, train: TrainConfig, opts: CollectOptions, singles: dict[str, np.ndarray],
-           collection: dict[str, np.ndarray], env_step: dict[str, np.ndarray], benches: dict[str, CollectBench]) -> None:
+def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray, collection: dict[str, np.ndarray],
+           env_step: dict[str, np.ndarray], benches: dict[str, CollectBench]) -> None:
     print(f"## {config.name}: {config.crowd.count} pedestrians; {train.num_envs} environments x "
           f"{train.steps_per_env} steps per iteration, {train.epochs} epochs x {train.minibatches} minibatches, "
           f"device {train.device}; medians of {opts.rounds} interleaved rounds (min-max)\n")
     print(f"Python {platform.python_version()} ({sys.executable}); {usable_cores()} usable cores\n")
+    one = np.median(single)
+    print(f"one environment alone, random actions: {np.median(single):,.0f} steps/s "
+          f"({single.min():,.0f}-{single.max():,.0f})\n")
     counts = list(collection)
-    single, driven = singles["random"], singles["policy"]
-    one, one_driven = np.median(single), np.median(driven)
-    print(f"one environment alone, random actions: {one:,.0f} steps/s ({single.min():,.0f}-{single.max():,.0f}); "
-          f"with the policy of row {counts[0]} (its sampled actions, policy untimed): {one_driven:,.0f} steps/s "
-          f"({driven.min():,.0f}-{driven.max():,.0f})\n")
     first = np.median(collection[counts[0]])
     env_rates = {w: np.median(values) for w, values in env_step.items()}
     print(f"| workers | collection, env steps/s | x {counts[0]} | env.step alone, env steps/s | "
-          f"x {counts[0]} | x one environment, random actions | x one environment, the policy | "
-          f"iteration incl. update, env steps/s |")
-    print("|---|---|---|---|---|---|---|---|")
+          f"x {counts[0]} | x one environment | iteration incl. update, env steps/s |")
+    print("|---|---|---|---|---|---|---|")
     for w, values in collection.items():
         b = benches[w]
         steps = b.train.num_envs * b.train.steps_per_env * b.iterations
@@ -392,7 +302,7 @@ def _print(config, train: TrainConfig, opts: CollectOptions, singles: dict[str, 
         print(f"| {w} | {np.median(values):,.0f} ({values.min():,.0f}-{values.max():,.0f}) | "
               f"{np.median(values) / first:.2f} | {env_rates[w]:,.0f} ({alone.min():,.0f}-{alone.max():,.0f}) | "
               f"{env_rates[w] / env_rates[counts[0]]:.2f} | "
-              f"{env_rates[w] / one:.2f} | {env_rates[w] / one_driven:.2f} | {whole:,.0f} |")
+              f"{env_rates[w] / one:.2f} | {whole:,.0f} |")
     print("\n| rollout step, ms (share) | " + " | ".join(STEP_PARTS) +
           " | whole step | worker processes' step: mean / longest | worker processes busy |")
     print("|---|" + "---|" * (len(STEP_PARTS) + 3))
