@@ -38,8 +38,9 @@ def test_cli_prints_rates_ratios_and_parts(capsys: pytest.CaptureFixture) -> Non
             "single_steps=5", *(f"train.{t}" for t in TINY)]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert out.count("| 1 | ") == 4 and out.count("| 2 | ") == 4 and out.count("| 2, main 1 | ") == 4  # four tables
-    assert out.count("| 2, rsl-rl order | ") == 4 and out.count("| 2, main 1, rsl-rl order | ") == 4
+    assert out.count("| 1 | ") == 5 and out.count("| 2 | ") == 5 and out.count("| 2, main 1 | ") == 5  # five tables
+    assert out.count("| 2, rsl-rl order | ") == 5 and out.count("| 2, main 1, rsl-rl order | ") == 5
+    assert "| 1 | 1.00 (1.00-1.00) | 1.00 (1.00-1.00) | " in out and "paired by round" in out
     assert "x one environment" in out and "PPO update" in out and "estimate on cores of their own" in out
 
 
@@ -49,3 +50,12 @@ def test_bad_list_is_one_error_line(capsys: pytest.CaptureFixture, arg: str, key
     assert main(["bench", "collect", arg]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and key in err
+
+
+def test_paired_ratios_are_taken_round_by_round() -> None:
+    """Rounds in which the host slows every configuration alike leave the paired ratio alone, where
+    the ratio of medians moves."""
+    first = np.array([100.0, 100.0, 50.0])  # round 2: the second configuration alone is slow; round 3: the host
+    second = np.array([180.0, 90.0, 90.0])
+    assert collect._paired(second, first) == "1.80 (0.90-1.80)"
+    assert np.median(second) / np.median(first) == pytest.approx(0.9)

@@ -13,7 +13,9 @@ Prints, with medians over rounds:
 
 * steps/s: collection (the rollout loop), the adapter's ``env.step`` alone (comparable with the
   single environment), the whole iteration (collection and update), and their ratios to 1
-  worker and to the single environment;
+  worker and to the single environment: ratios of the medians, then the same ratios taken
+  within each round (median and range over rounds; the blocks of one round run seconds apart,
+  so the machine's drift over a run cancels);
 * where one rollout step (all environments) goes, ms: the trainer's policy inference
   (``alg.act``; with the pipeline also the dispatch of the actions and the previous step's
   storage and logger, so that the storage and logger columns then hold only their hand-over), then inside ``env.step`` this process's own block, its wait for the worker
@@ -279,6 +281,22 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
            {w: np.array(v) for w, v in env_step.items()}, benches)
 
 
+def _paired(values: np.ndarray, reference: np.ndarray) -> str:
+    """Median (min-max) over rounds of ``values / reference``, round by round."""
+    ratios = values / reference
+    return f"{np.median(ratios):.2f} ({ratios.min():.2f}-{ratios.max():.2f})"
+
+
+def _print_paired(single: np.ndarray, collection: dict[str, np.ndarray], env_step: dict[str, np.ndarray]) -> None:
+    """The ratios of the first table taken within each round, where the machine's speed drifts least."""
+    counts = list(collection)
+    print(f"\n| workers | collection x {counts[0]}, paired by round | env.step alone x {counts[0]}, paired by round "
+          f"| env.step alone x one environment, paired by round |\n|---|---|---|---|")
+    for w, values in collection.items():
+        print(f"| {w} | {_paired(values, collection[counts[0]])} | {_paired(env_step[w], env_step[counts[0]])} | "
+              f"{_paired(env_step[w], single)} |")
+
+
 def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray, collection: dict[str, np.ndarray],
            env_step: dict[str, np.ndarray], benches: dict[str, CollectBench]) -> None:
     print(f"## {config.name}: {config.crowd.count} pedestrians; {train.num_envs} environments x "
@@ -303,6 +321,7 @@ def _print(config, train: TrainConfig, opts: CollectOptions, single: np.ndarray,
               f"{np.median(values) / first:.2f} | {env_rates[w]:,.0f} ({alone.min():,.0f}-{alone.max():,.0f}) | "
               f"{env_rates[w] / env_rates[counts[0]]:.2f} | "
               f"{env_rates[w] / one:.2f} | {whole:,.0f} |")
+    _print_paired(single, collection, env_step)
     print("\n| rollout step, ms (share) | " + " | ".join(STEP_PARTS) +
           " | whole step | worker processes' step: mean / longest | worker processes busy |")
     print("|---|" + "---|" * (len(STEP_PARTS) + 3))
