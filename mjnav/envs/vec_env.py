@@ -31,6 +31,16 @@ the caller goes on (PPO's value estimates and storage), and the next :meth:`NavV
 the same actions steps this process's block and collects; the results are those of ``step``
 alone. The ``perf/*`` times then leave out the dispatch (writing the actions, sending the command).
 
+:meth:`NavVecEnv.rollout` goes further: given a picklable policy (``policy(t, indices, obs,
+critic) -> (actions, aux)``, :class:`mjnav.train.ppo.RolloutActor` for PPO), every worker runs the
+next ``steps`` steps of its block by itself, choosing its environments' actions, without waiting
+for the others or for the caller at each step; the record (actions, ``aux``, results) goes to a
+second shared-memory block, and the next ``steps`` calls of :meth:`NavVecEnv.step` serve it in
+order, each returning what ``step`` with those actions returns (its ``perf/*`` times: the own
+block's and the worker processes' step times recorded in the rollout). A worker runs its block in
+parts of at most ``rollout_envs`` environments, each part through every step before the next, so
+that a part's environments stay in the cache.
+
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
 environment's own generator, so the same seed and actions give the same rollouts.
 """
@@ -38,6 +48,8 @@ environment's own generator, so the same seed and actions give the same rollouts
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import os
 import time
 from collections import Counter
 from multiprocessing.shared_memory import SharedMemory
@@ -50,6 +62,7 @@ from tensordict import TensorDict
 
 from mjnav.envs.workers import (
     _CODES,
+    _RESULTS,
     OUTCOMES,
     EnvError,
     EnvFn,
@@ -57,8 +70,11 @@ from mjnav.envs.workers import (
     _default_workers,
     _layout,
     _LocalHandle,
+    _record_layout,
     _views,
     _WorkerHandle,
+    RolloutPolicy,
+    rollout_parts,
 )
 from mjnav.schema import ConfigError
 
@@ -86,6 +102,16 @@ def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range
                           f"on {workers} workers, got {first}")
     ends = np.cumsum(sizes)
     return [range(int(end - size), int(end)) for size, end in zip(sizes, ends, strict=True)]
+
+
+@dataclasses.dataclass
+class _Replay:
+    """A rollout being served by :meth:`NavVecEnv.step`: its length, each step's worker replies
+    (in the order of the handles) and the steps served so far."""
+
+    steps: int
+    replies: list[list[tuple]]
+    served: int = 0
 
 
 class NavVecEnv(VecEnv):
@@ -120,6 +146,7 @@ class NavVecEnv(VecEnv):
         cfg: dict | None = None,
         step_in_main: bool = True,
         main_envs: int | None = None,
+        rollout_envs: int = 16,
     ) -> None:
         """Start the workers, build and reset the environments.
 
@@ -141,6 +168,9 @@ class NavVecEnv(VecEnv):
                 itself (the first block; the worker processes share the rest evenly). None: an even
                 share; ignored with W < 2. Fewer leave it time for its own per-step work (the policy, the adapter's
                 bookkeeping) while the worker processes step; rollouts do not depend on it.
+            rollout_envs: Most environments a worker runs together through a :meth:`rollout` (its
+                block in parts of at most this many, one part after another; 0: the whole block).
+                Fewer keep a part's environments in the cache; results do not depend on it.
 
         Raises:
             EnvError: A worker failed to start or to build an environment (with its traceback).
@@ -156,6 +186,9 @@ class NavVecEnv(VecEnv):
         if main_envs is not None and not step_in_main:
             raise ValueError("main_envs needs step_in_main=True (this process steps the first block)")
         self.blocks = _blocks(num_envs, self.workers, main_envs)
+        if rollout_envs < 0:
+            raise ValueError(f"rollout_envs must be >= 0, got {rollout_envs}")
+        self.rollout_envs = rollout_envs
         self.step_timeout_s = step_timeout_s
         self._handles: list[Any] = []
         self._shm: SharedMemory | None = None
@@ -163,6 +196,8 @@ class NavVecEnv(VecEnv):
         self._closed = False
         self._split = (0.0, 0.0)  # seconds of the last call: own block, wait
         self._pending: np.ndarray | None = None  # episode lengths after the dispatched step
+        self._record: tuple[SharedMemory | None, dict[str, np.ndarray], tuple] = (None, {}, ())
+        self._replay: _Replay | None = None  # the rollout being served by step()
         self._remote = 0  # worker processes (the first handles)
         try:
             self._start(env_fn, start_method, start_timeout_s, max_episode_length)
@@ -266,6 +301,7 @@ class NavVecEnv(VecEnv):
             RuntimeError: A step was dispatched and not yet finished by :meth:`step`.
         """
         self._check_idle("reset")
+        self._replay = None  # a rollout still being served is dropped: every environment restarts
         self._call("reset")
         self.episode_length_buf = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
         self._returns = np.zeros(self.num_envs)
@@ -273,10 +309,12 @@ class NavVecEnv(VecEnv):
         self._read_observations()
         return self.get_observations()
 
-    def _read_observations(self) -> None:
-        self._obs = torch.from_numpy(self._buf["obs"].copy()).to(self.device)
+    def _read_observations(self, buf: dict[str, np.ndarray] | None = None) -> None:
+        """Take the observations (and critic inputs) from ``buf`` (default: the step buffers)."""
+        buf = self._buf if buf is None else buf
+        self._obs = torch.from_numpy(buf["obs"].copy()).to(self.device)
         if self.critic_dim:
-            self._critic = torch.from_numpy(self._buf["critic"].copy()).to(self.device)
+            self._critic = torch.from_numpy(buf["critic"].copy()).to(self.device)
 
     def get_observations(self) -> TensorDict:
         """Current observations as ``TensorDict(policy=(N, obs_dim))``, plus ``critic=(N, critic_dim)``
@@ -323,6 +361,9 @@ class NavVecEnv(VecEnv):
         self._check_open(call)
         if self._pending is not None:
             raise RuntimeError(f"{call}() while a dispatched step is running: call step() with its actions first")
+        if self._replay is not None and call != "reset":
+            raise RuntimeError(f"{call}() while a rollout is being served: step() through its "
+                               f"{self._replay.steps - self._replay.served} remaining steps first")
 
     def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
         """Step every environment; finished ones are reset and report the new episode's observation.
@@ -344,6 +385,8 @@ class NavVecEnv(VecEnv):
         """
         start = time.perf_counter()
         self._check_open("step")
+        if self._replay is not None:
+            return self._serve(actions, start)
         if self._pending is None:
             self._start_step(actions)
         elif not np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), self._buf["actions"]):
@@ -356,12 +399,18 @@ class NavVecEnv(VecEnv):
         sent = time.perf_counter()
         replies = self._finish("step")
         received = time.perf_counter()
-        buf = self._buf
+        self._read_observations()
+        read = time.perf_counter()
+        return self._results(self._buf, lengths, replies, start, (sent - start) + (read - received))
+
+    def _results(
+        self, buf: dict[str, np.ndarray], lengths: np.ndarray, replies: list[tuple], start: float, transfer: float
+    ) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
+        """A step's return value from its results in ``buf`` (observations already read): the
+        episode clock, the logs and the tensors; ``transfer`` is the time spent so far moving data."""
         rewards, outcome = buf["rewards"].copy(), buf["outcome"].copy()
         terminated, truncated = buf["terminated"].copy(), buf["truncated"].copy()
         done = terminated | truncated
-        self._read_observations()
-        read = time.perf_counter()
         self._returns += rewards
         self._steps += 1
         log = self._log(done, outcome, replies)
@@ -376,8 +425,135 @@ class NavVecEnv(VecEnv):
         dones = torch.from_numpy(done.astype(np.int64)).to(self.device)
         result = self.get_observations(), torch.from_numpy(rewards).to(self.device), dones, extras
         end = time.perf_counter()
-        self._log_times(log, replies, start, end, (sent - start) + (read - received) + (end - packed))
+        self._log_times(log, replies, start, end, transfer + (end - packed))
         return result
+
+    def rollout(self, policy: RolloutPolicy, steps: int, aux_dim: int = 0) -> None:
+        """Run the next ``steps`` steps at once, each worker choosing its environments' actions
+        with ``policy``; the following ``steps`` calls of :meth:`step` then return them in order.
+
+        Every worker (this process included) runs its block through all ``steps`` steps without
+        waiting for the others at each step, as it would be stepped by :meth:`step` with the
+        actions ``policy`` gives (auto-resets and forced truncations included), and records them;
+        it runs the block in parts of at most ``rollout_envs`` environments, one after another
+        (:attr:`rollout_blocks`: ``policy`` is called for one part at a time).
+        :meth:`recorded` gives the actions of the next step to serve (and ``aux``, the policy's
+        other outputs); :meth:`step` with them returns what :meth:`step` alone would have.
+
+        Args:
+            policy: Picklable ``policy(t, indices, obs, critic) -> (actions, aux)``
+                (:data:`mjnav.envs.workers.RolloutPolicy`); it is sent to every worker process.
+            steps: Steps to run (>= 1).
+            aux_dim: Length of each environment's ``aux`` row.
+
+        Raises:
+            ValueError: ``steps`` < 1 or the record does not fit in shared memory (:meth:`can_record`;
+                nothing is started), or the policy gave non-finite actions (the adapter is then
+                closed: the other workers stepped on).
+            RuntimeError: A step is dispatched or a rollout is still being served.
+            EnvError: An environment raised or a worker died; the adapter is closed.
+        """
+        self._check_idle("rollout")
+        if steps < 1:
+            raise ValueError(f"steps must be >= 1, got {steps}")
+        self._ensure_record(steps, aux_dim)
+        lengths = self.episode_length_buf.cpu().numpy().copy()
+        arg = (policy, steps, lengths, self.max_episode_length, self.rollout_envs)
+        self._send("rollout", arg)
+        replies = self._finish("rollout", arg)
+        bad = [failed for _, failed in replies if failed is not None]
+        if bad:
+            self.close()
+            t, envs = min(bad)
+            raise ValueError(f"non-finite actions (NaN/inf) at rollout step {t} for envs {envs[:16]}: the "
+                             "policy diverged; the adapter is closed (the other workers stepped on)")
+        self._replay = _Replay(steps, [list(step) for step in zip(*(r for r, _ in replies), strict=True)])
+
+    @property
+    def rollout_blocks(self) -> list[range]:
+        """The environments for which :meth:`rollout` calls its policy together: each worker's block
+        in parts of at most ``rollout_envs``."""
+        return [part for block in self.blocks for part in rollout_parts(block, self.rollout_envs)]
+
+    @property
+    def replaying(self) -> bool:
+        """Whether a rollout (:meth:`rollout`) is being served by :meth:`step`."""
+        return self._replay is not None
+
+    def recorded(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """The actions (N, num_actions) and ``aux`` (N, aux_dim) of the rollout's next step.
+
+        Raises:
+            RuntimeError: No rollout is being served.
+        """
+        if self._replay is None:
+            raise RuntimeError("recorded() without a rollout being served (call rollout() first)")
+        rec, t = self._record[1], self._replay.served
+        return (torch.from_numpy(rec["actions"][t].copy()).to(self.device),
+                torch.from_numpy(rec["aux"][t].copy()).to(self.device))
+
+    def _serve(self, actions: torch.Tensor, start: float) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:
+        """:meth:`step` while a rollout is served: its next recorded step, for its actions only."""
+        replay, rec = self._replay, self._record[1]
+        t = replay.served
+        if not np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), rec["actions"][t]):
+            self.close()
+            raise ValueError(f"step() got other actions than the rollout's step {t}: the workers stepped with "
+                             "the policy's, so the adapter is closed")
+        replay.served += 1
+        if replay.served == replay.steps:
+            self._replay = None
+        step = {name: rec[name][t] for name in _RESULTS}
+        self._read_observations(step)
+        self._split = (replay.replies[t][-1][3] if self._remote < len(self._handles) else 0.0, 0.0)
+        lengths = self.episode_length_buf.cpu().numpy() + 1
+        return self._results(step, lengths, replay.replies[t], start, time.perf_counter() - start)
+
+    def can_record(self, steps: int, aux_dim: int = 0) -> bool:
+        """Whether a :meth:`rollout` of ``steps`` steps fits: its record, in shared memory with worker
+        processes, needs at most the free space of ``/dev/shm`` (containers often give it 64 MB)."""
+        shape = self._record_shape(steps, aux_dim)
+        if not self._remote or self._record[2] == shape or not os.path.isdir("/dev/shm"):
+            return True
+        stat = os.statvfs("/dev/shm")
+        return _record_layout(*shape)[1] <= stat.f_bavail * stat.f_frsize
+
+    def _record_shape(self, steps: int, aux_dim: int) -> tuple[int, ...]:
+        return steps, self.num_envs, self.observation_space.shape[0], self.num_actions, self.critic_dim, aux_dim
+
+    def _ensure_record(self, steps: int, aux_dim: int) -> None:
+        """A shared record for ``steps`` steps, mapped by every worker (a new one when the size changed).
+
+        Raises:
+            ValueError: It does not fit in ``/dev/shm`` (:meth:`can_record`); nothing changed.
+        """
+        shape = self._record_shape(steps, aux_dim)
+        if self._record[2] == shape:
+            return
+        if not self.can_record(steps, aux_dim):
+            raise ValueError(f"a rollout of {steps} steps needs {_record_layout(*shape)[1] / 2**20:.0f} MB of "
+                             "shared memory, more than /dev/shm has free")
+        layout, nbytes = _record_layout(*shape)
+        if self._remote:
+            segment = SharedMemory(create=True, size=nbytes)
+            views = _views(segment.buf, layout)
+        else:
+            segment, views = None, _views(bytearray(nbytes), layout)
+        old = self._record[0]
+        self._record = (segment, views, shape)
+        try:
+            for handle in self._handles:
+                handle.request("record", views if isinstance(handle, _LocalHandle) else (segment.name, layout))
+            for handle in self._handles:
+                handle.result(self.step_timeout_s)
+        except BaseException:
+            self.close()
+            raise
+        finally:
+            if segment is not None:
+                segment.unlink()  # mapped by every worker (or failed): the name goes
+        if old is not None:
+            old.close()
 
     def _log_times(self, log: dict[str, Any], replies: list[tuple], start: float, end: float, transfer: float) -> None:
         """The ``perf/*`` entries of one step (module docstring), in milliseconds."""
@@ -432,7 +608,10 @@ class NavVecEnv(VecEnv):
         for handle in self._handles:
             with contextlib.suppress(Exception):
                 handle.close()
-        self._buf = {}
+        self._buf, self._replay = {}, None
+        segment, self._record = self._record[0], (None, {}, ())
+        if segment is not None:
+            segment.close()
         if self._shm is not None:
             self._shm.close()
             if self._shm_named:  # closed before every worker had mapped it

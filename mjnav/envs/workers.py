@@ -2,8 +2,9 @@
 
 A worker process owns a contiguous block of environments, steps them with the actions found in
 a shared-memory block and writes observations, rewards and flags back; the reply on its pipe is
-only the per-worker sums of the reward terms and MPC statistics. :class:`_LocalHandle` runs the
-same protocol in the calling process (``workers=0``).
+only the per-worker sums of the reward terms and MPC statistics. A worker also runs whole
+rollouts with a policy it is sent (:meth:`_EnvGroup.rollout`), recording them in a second shared
+block. :class:`_LocalHandle` runs the same protocol in the calling process (``workers=0``).
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import numpy as np
 
 from mjnav.jobs import usable_cores
 
-__all__ = ["OUTCOMES", "EnvError", "step_in_stages", "usable_cores"]
+__all__ = ["OUTCOMES", "EnvError", "rollout_parts", "step_in_stages", "usable_cores"]
 
 OUTCOMES: tuple[str, ...] = ("running", "success", "collision", "timeout")
 """Outcome names; ``extras["outcomes"]`` holds their indices."""
@@ -35,6 +36,11 @@ OUTCOMES: tuple[str, ...] = ("running", "success", "collision", "timeout")
 _CODES = {name: code for code, name in enumerate(OUTCOMES)}
 
 EnvFn = Callable[[int], gym.Env]
+
+RolloutPolicy = Callable[[int, range, np.ndarray, "np.ndarray | None"], tuple[np.ndarray, np.ndarray]]
+"""``policy(t, indices, obs, critic) -> (actions, aux)``: a worker's actions for its environments
+``indices`` at step ``t`` of a rollout, from their observations (and privileged critic inputs, or
+None), with any other per-environment outputs to record (``aux``, float32)."""
 
 
 class EnvError(RuntimeError):
@@ -44,7 +50,7 @@ class EnvError(RuntimeError):
 def _layout(num_envs: int, obs_dim: int, act_dim: int, critic_dim: int = 0) -> tuple[dict[str, tuple], int]:
     """Byte offsets (64-aligned), dtypes and shapes of the shared buffers, and the total size."""
     n = num_envs
-    specs = {
+    return _pack({
         "obs": (np.float32, (n, obs_dim)),
         "critic": (np.float32, (n, critic_dim)),
         "actions": (np.float32, (n, act_dim)),
@@ -53,7 +59,33 @@ def _layout(num_envs: int, obs_dim: int, act_dim: int, critic_dim: int = 0) -> t
         "truncated": (np.bool_, (n,)),
         "force": (np.bool_, (n,)),
         "outcome": (np.int8, (n,)),
-    }
+    })
+
+
+def _record_layout(
+    steps: int, num_envs: int, obs_dim: int, act_dim: int, critic_dim: int, aux_dim: int
+) -> tuple[dict[str, tuple], int]:
+    """The shared record of a rollout (:meth:`_EnvGroup.rollout`): each step's actions, the policy's
+    other outputs (``aux``) and the step's results, for ``steps`` steps of ``num_envs`` environments."""
+    t, n = steps, num_envs
+    return _pack({
+        "actions": (np.float32, (t, n, act_dim)),
+        "aux": (np.float32, (t, n, aux_dim)),
+        "obs": (np.float32, (t, n, obs_dim)),
+        "critic": (np.float32, (t, n, critic_dim)),
+        "rewards": (np.float32, (t, n)),
+        "terminated": (np.bool_, (t, n)),
+        "truncated": (np.bool_, (t, n)),
+        "outcome": (np.int8, (t, n)),
+    })
+
+
+#: The fields of a step's results, copied from the step buffers into a rollout's record.
+_RESULTS = ("obs", "critic", "rewards", "terminated", "truncated", "outcome")
+
+
+def _pack(specs: dict[str, tuple]) -> tuple[dict[str, tuple], int]:
+    """Byte offsets (64-aligned) of fields given as ``name: (dtype, shape)``, and the total size."""
     layout, offset = {}, 0
     for name, (dtype, shape) in specs.items():
         layout[name] = (offset, dtype, shape)
@@ -78,6 +110,7 @@ class _EnvGroup:
         self.seed = seed
         self.envs = [env_fn(i) for i in indices]
         self.buf: dict[str, np.ndarray] = {}
+        self.rec: dict[str, np.ndarray] = {}  # a rollout's record (:func:`_record_layout`)
         self._seeded = False
 
     def describe(self) -> tuple[gym.Space, gym.Space, int | None, int]:
@@ -106,23 +139,28 @@ class _EnvGroup:
         self._seeded = True
         self.buf["outcome"][self.indices.start : self.indices.stop] = 0
 
-    def step(self) -> tuple[Counter, Counter, Counter, float, float]:
-        """Step every environment with the shared actions; auto-reset finished ones.
+    def step(self, part: range | None = None) -> tuple[Counter, Counter, Counter, float, float]:
+        """Step every environment (of ``part``, default all) with the shared actions; auto-reset finished ones.
 
         Returns:
-            Sums over this group of the reward terms, sums and counts of the MPC statistics, and
-            the wall-clock and CPU seconds of this call (measured where it runs; the CPU time
-            leaves out the time the process waited for a core on a shared machine).
+            Sums over these environments of the reward terms, sums and counts of the MPC
+            statistics, and the wall-clock and CPU seconds of this call (measured where it runs;
+            the CPU time leaves out the time the process waited for a core on a shared machine).
         """
         start, cpu = time.perf_counter(), time.thread_time()
+        indices = self.indices if part is None else part
+        envs = self.envs[indices.start - self.indices.start : indices.stop - self.indices.start]
         terms: dict[str, float] = {}
         mpc_sum: dict[str, float] = {}
         mpc_count: dict[str, int] = {}
         buf = self.buf
         actions, force, outcomes = buf["actions"], buf["force"], buf["outcome"]
         observations, rewards, terminated_buf, truncated_buf = buf["obs"], buf["rewards"], buf["terminated"], buf["truncated"]
-        steps = self._in_stages(actions) if self.staged else self._in_turn(actions)
-        for i, env, (obs, reward, terminated, truncated, info) in zip(self.indices, self.envs, steps, strict=True):
+        if self.staged:
+            steps = step_in_stages(envs, [actions[i].copy() for i in indices], indices)
+        else:
+            steps = self._in_turn(actions, indices, envs)
+        for i, env, (obs, reward, terminated, truncated, info) in zip(indices, envs, steps, strict=True):
             try:
                 for name, value in info.get("reward_terms", {}).items():  # plain dict sums: cheaper than Counter
                     terms[name] = terms.get(name, 0.0) + value
@@ -142,24 +180,78 @@ class _EnvGroup:
                 raise
         return Counter(terms), Counter(mpc_sum), Counter(mpc_count), time.perf_counter() - start, time.thread_time() - cpu
 
+    def rollout(
+        self, policy: RolloutPolicy, steps: int, lengths: np.ndarray, limit: int, part_size: int = 0
+    ) -> tuple[list[tuple], tuple[int, list[int]] | None]:
+        """Step ``steps`` times with the actions ``policy`` chooses from each step's observations;
+        record every step's actions, the policy's other outputs and the results in :attr:`rec`.
+
+        Each step is :meth:`step` (auto-resets included) with the truncations the adapter would
+        force: an environment whose episode reaches ``limit`` steps is truncated. The group runs
+        in parts of at most ``part_size`` environments (0: all at once; :func:`rollout_parts`), each
+        part through all ``steps`` before the next: a part's environments stay in the cache.
+
+        Args:
+            policy: ``policy(t, indices, obs, critic) -> (actions, aux)`` for the environments
+                ``indices`` at step ``t`` (``critic`` None without privileged inputs).
+            steps: Steps to run.
+            lengths: Every environment's episode length before the first step (all N).
+            limit: The adapter's ``max_episode_length``.
+            part_size: Most environments stepped together.
+
+        Returns:
+            Each step's reply (:meth:`step`'s, summed over the parts), and None, or
+            ``(t, environments)`` when the policy's actions at step ``t`` were not finite for those
+            environments (the rollout stopped there, before stepping them).
+        """
+        replies: list[list[tuple]] = []
+        for part in rollout_parts(self.indices, part_size):
+            part_replies, failed = self._roll_part(policy, steps, lengths, limit, part)
+            if failed is not None:
+                return [], failed
+            replies.append(part_replies)
+        return [_summed(step) for step in zip(*replies, strict=True)], None
+
+    def _roll_part(
+        self, policy: RolloutPolicy, steps: int, lengths: np.ndarray, limit: int, part: range
+    ) -> tuple[list[tuple], tuple[int, list[int]] | None]:
+        """:meth:`rollout` of the environments ``part``."""
+        rows = slice(part.start, part.stop)
+        buf, rec = self.buf, self.rec
+        lengths = np.array(lengths[rows], dtype=np.int64)
+        replies = []
+        for t in range(steps):
+            critic = buf["critic"][rows] if buf["critic"].shape[1] else None
+            actions, aux = policy(t, part, buf["obs"][rows], critic)
+            actions = np.asarray(actions, dtype=np.float32)
+            finite = np.isfinite(actions).all(axis=1)
+            if not finite.all():
+                return replies, (t, (part.start + np.flatnonzero(~finite)).tolist())
+            buf["actions"][rows] = rec["actions"][t, rows] = actions
+            rec["aux"][t, rows] = aux
+            lengths += 1
+            buf["force"][rows] = lengths >= limit
+            replies.append(self.step(part))
+            for name in _RESULTS:
+                rec[name][t, rows] = buf[name][rows]
+            lengths[buf["terminated"][rows] | buf["truncated"][rows]] = 0
+        return replies, None
+
     @property
     def staged(self) -> bool:
         """Whether every environment steps as well stage by stage: it has ``step_stages`` and says
         its ``stages_are_step`` (:class:`mjnav.envs.gym_env.NavGymEnv`, not wrapped, ``step`` not overridden)."""
         return all(_stages_are_step(env) for env in self.envs)
 
-    def _in_turn(self, actions: np.ndarray) -> Iterator[tuple]:
+    @staticmethod
+    def _in_turn(actions: np.ndarray, indices: range, envs: list[Any]) -> Iterator[tuple]:
         """Each environment's ``step`` result, stepping it only when asked for it."""
-        for i, env in zip(self.indices, self.envs, strict=True):
+        for i, env in zip(indices, envs, strict=True):
             try:
                 yield env.step(actions[i].copy())
             except Exception as exc:
                 _blame(exc, i)
                 raise
-
-    def _in_stages(self, actions: np.ndarray) -> list[tuple]:
-        """Every environment's ``step`` result, stepping them stage by stage (:func:`step_in_stages`)."""
-        return step_in_stages(self.envs, [actions[i].copy() for i in self.indices], self.indices)
 
     def close(self) -> None:
         """Close every environment."""
@@ -212,6 +304,23 @@ def step_in_stages(envs: list[Any], actions: list[np.ndarray], indices: Sequence
     return results
 
 
+def rollout_parts(indices: range, size: int) -> list[range]:
+    """``indices`` in contiguous parts of at most ``size`` (as even as possible; 0: one part)."""
+    count = 1 if size <= 0 else -(-len(indices) // size)
+    return [range(indices.start + int(p[0]), indices.start + int(p[-1]) + 1)
+            for p in np.array_split(np.arange(len(indices)), count)]
+
+
+def _summed(replies: tuple[tuple, ...]) -> tuple[Counter, Counter, Counter, float, float]:
+    """Replies of :meth:`_EnvGroup.step` for parts of a group, as one: sums of each entry."""
+    terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
+    for reply in replies:
+        terms.update(reply[0])
+        mpc_sum.update(reply[1])
+        mpc_count.update(reply[2])
+    return terms, mpc_sum, mpc_count, sum(r[3] for r in replies), sum(r[4] for r in replies)
+
+
 def _blame(exc: Exception, index: int) -> None:
     """Add the environment index to an exception raised while stepping or resetting it."""
     exc.add_note(f"(in environment {index})")
@@ -234,7 +343,7 @@ def _worker_main(conn: Connection, env_fn: EnvFn, indices: range, seed: int) -> 
     """Worker loop: build the envs, report their spaces, then serve commands until ``close``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the main process's business
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # the main process closes us (or we see EOF)
-    group, shm = None, None
+    group, shm, record = None, None, None
     try:
         group = _EnvGroup(env_fn, indices, seed)
         conn.send(("ok", group.describe()))
@@ -245,9 +354,18 @@ def _worker_main(conn: Connection, env_fn: EnvFn, indices: range, seed: int) -> 
             elif command == "reset":
                 group.reset()
                 conn.send(("ok", None))
+            elif command == "rollout":
+                conn.send(("ok", group.rollout(*arg)))
             elif command == "attach":
                 shm = SharedMemory(name=arg[0])
                 group.buf = _views(shm.buf, arg[1])
+                conn.send(("ok", None))
+            elif command == "record":  # a new record replaces the last one
+                group.rec = {}
+                if record is not None:
+                    record.close()
+                record = SharedMemory(name=arg[0])
+                group.rec = _views(record.buf, arg[1])
                 conn.send(("ok", None))
             elif command == "close":
                 break
@@ -257,11 +375,12 @@ def _worker_main(conn: Connection, env_fn: EnvFn, indices: range, seed: int) -> 
         conn.send(("error", traceback.format_exc()))
     finally:
         if group is not None:
-            group.buf = {}
+            group.buf, group.rec = {}, {}
             with contextlib.suppress(Exception):
                 group.close()
-        if shm is not None:
-            shm.close()
+        for segment in (shm, record):
+            if segment is not None:
+                segment.close()
 
 
 class _LocalHandle(_EnvGroup):
@@ -269,7 +388,12 @@ class _LocalHandle(_EnvGroup):
 
     def request(self, command: str, arg: Any = None) -> None:
         try:
-            self._reply = self.buf.update(arg) if command == "attach" else getattr(self, command)()
+            if command == "attach":
+                self._reply = self.buf.update(arg)
+            elif command == "record":
+                self.rec, self._reply = arg, None
+            else:
+                self._reply = getattr(self, command)(*(() if arg is None else arg))
         except Exception as exc:
             raise EnvError(
                 f"envs {self.indices.start}-{self.indices.stop - 1} raised:\n{traceback.format_exc()}"

@@ -411,3 +411,127 @@ def test_the_shared_memory_has_no_name_once_the_workers_mapped_it() -> None:
         assert set(os.listdir("/dev/shm")) - before == set()
         env.step(torch.zeros(4, ACT_DIM))
     assert set(os.listdir("/dev/shm")) - before == set()
+
+
+@dataclasses.dataclass(frozen=True)
+class TablePolicy:
+    """A picklable rollout policy: actions from the observations, the step and a fixed noise table
+    (per step and environment); ``aux`` holds the first two observations, tripled; ``nan_at``:
+    (step, environment) whose actions are NaN."""
+
+    noise: np.ndarray
+    nan_at: tuple[int, int] | None = None
+
+    def __call__(self, t: int, indices: range, obs: np.ndarray, critic: np.ndarray | None) -> tuple:
+        actions = np.tanh(obs[:, :ACT_DIM]) * 2.0 + self.noise[t, indices.start : indices.stop]
+        if critic is not None:
+            actions[:, 0] += critic[:, 0] * 0.01
+        if self.nan_at is not None and self.nan_at[0] == t and self.nan_at[1] in indices:
+            actions[self.nan_at[1] - indices.start, 1] = np.nan
+        return actions.astype(np.float32), 3.0 * obs[:, :2]
+
+
+def _table(steps: int, num_envs: int, seed: int = 3) -> TablePolicy:
+    return TablePolicy(np.random.default_rng(seed).normal(size=(steps, num_envs, ACT_DIM)).astype(np.float32))
+
+
+def _served(env: NavVecEnv, steps: int, policy: TablePolicy, rollout: bool) -> list[tuple]:
+    """``steps`` steps with ``policy``'s actions, through a rollout or step by step."""
+    if rollout:
+        env.rollout(policy, steps, aux_dim=2)
+    out = []
+    for t in range(steps):
+        obs = env.get_observations()
+        critic = obs["critic"].numpy() if "critic" in obs.keys() else None
+        actions, aux = policy(t, range(env.num_envs), obs["policy"].numpy(), critic)
+        if rollout:
+            recorded, recorded_aux = env.recorded()
+            assert np.array_equal(recorded.numpy(), actions) and np.array_equal(recorded_aux.numpy(), aux)
+        obs, rew, dones, extras = env.step(torch.from_numpy(actions))
+        log = {k: v for k, v in extras["log"].items() if not k.startswith("perf/")}
+        out.append((obs, rew, dones, extras["time_outs"], extras["outcomes"], log, env.episode_length_buf.clone()))
+    return out
+
+
+@pytest.mark.parametrize(("critic", "parts"), [(0, 0), (3, 0), (0, 2)])
+def test_a_rollout_serves_what_stepping_gives(workers: dict, critic: int, parts: int) -> None:
+    """rollout() then step() through it returns, step for step, what step() with the policy's actions
+    returns: observations, rewards, dones, time-outs, outcomes, logs and the episode clock (truncations
+    forced by a short limit and by a preset clock), over two rollouts in a row; also when each worker
+    runs its block in parts of 2 environments (the logged sums then add up per part)."""
+    runs = []
+    for rollout in (False, True):
+        factory = FakeFactory(limit=50, critic=critic)
+        with NavVecEnv(factory, num_envs=5, seed=4, max_episode_length=7, rollout_envs=parts, **workers) as env:
+            env.episode_length_buf = torch.tensor([0, 3, 6, 5, 1])
+            runs.append(_served(env, 9, _table(9, 5), rollout) + _served(env, 4, _table(4, 5, seed=8), rollout))
+            assert not env.replaying
+    for plain, served in zip(*runs, strict=True):
+        assert torch.equal(plain[0]["policy"], served[0]["policy"])
+        assert critic == 0 or torch.equal(plain[0]["critic"], served[0]["critic"])
+        assert all(torch.equal(a, b) for a, b in zip(plain[1:5], served[1:5], strict=True))
+        assert plain[5].keys() == served[5].keys()
+        for key in plain[5]:  # sums over parts of a block: equal to rounding
+            assert torch.allclose(torch.as_tensor(plain[5][key]), torch.as_tensor(served[5][key]), rtol=1e-12), key
+        assert torch.equal(plain[6], served[6])
+
+
+def test_a_rollout_splits_the_step_time_like_a_step() -> None:
+    """Served steps report this process's own block and the worker processes' step times."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
+        env.rollout(_table(3, 4), 3, aux_dim=2)
+        for t in range(3):
+            log = env.step(env.recorded()[0])[3]["log"]
+            assert log["perf/own_block_ms"] > 0.0 and log["perf/worker_step_ms"] > 0.0
+
+
+def test_rollout_misuse_is_refused() -> None:
+    """While a rollout is served, dispatch() and rollout() are RuntimeErrors and reset() drops it;
+    step() with other actions than the recorded ones closes the adapter."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
+        with pytest.raises(RuntimeError, match="without a rollout"):
+            env.recorded()
+        with pytest.raises(ValueError, match="steps must be"):
+            env.rollout(_table(1, 4), 0)
+        env.rollout(_table(3, 4), 3, aux_dim=2)
+        assert env.replaying
+        for call in (lambda: env.dispatch(torch.zeros(4, ACT_DIM)), lambda: env.rollout(_table(3, 4), 3, 2)):
+            with pytest.raises(RuntimeError, match="3 remaining steps"):
+                call()
+        env.reset()
+        assert not env.replaying
+        env.rollout(_table(2, 4), 2, aux_dim=2)
+        env.step(env.recorded()[0])
+        with pytest.raises(ValueError, match="other actions than the rollout's step 1"):
+            env.step(env.recorded()[0] + 1.0)
+        assert env._closed
+
+
+def test_non_finite_rollout_actions_close_the_adapter(workers: dict) -> None:
+    """A policy that gives NaN in a rollout: ValueError naming the step and environment, adapter closed."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, **workers) as env:
+        with pytest.raises(ValueError, match=r"rollout step 2 for envs \[3\]"):
+            env.rollout(dataclasses.replace(_table(4, 4), nan_at=(2, 3)), 4, aux_dim=2)
+        assert env._closed
+
+
+def test_an_environment_failing_in_a_rollout_surfaces(workers: dict) -> None:
+    """An environment raising within a rollout is an EnvError carrying its traceback; adapter closed."""
+    with NavVecEnv(FakeFactory(fail_env=3, fail_step=2), num_envs=4, seed=0, **workers) as env:
+        with pytest.raises(EnvError, match="exploded on purpose"):
+            env.rollout(_table(4, 4), 4, aux_dim=2)
+        assert env._closed
+
+
+def test_a_rollout_too_large_for_the_shared_memory_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A record larger than the free space of /dev/shm: can_record() says so and rollout() refuses
+    with a clear error before anything starts; the adapter goes on stepping."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
+        assert env.can_record(3, 2)
+        monkeypatch.setattr("mjnav.envs.vec_env.os.statvfs", lambda path: os.statvfs_result((4096, 4096, 10, 0, 0, 0, 0, 0, 0, 255)))
+        monkeypatch.setattr("mjnav.envs.vec_env.os.path.isdir", lambda path: True)
+        assert not env.can_record(3, 2)
+        with pytest.raises(ValueError, match="MB of shared memory"):
+            env.rollout(_table(3, 4), 3, aux_dim=2)
+        assert not env.replaying and not env._closed
+        env.step(torch.zeros(4, ACT_DIM))

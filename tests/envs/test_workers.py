@@ -10,7 +10,7 @@ import pytest
 
 from mjnav.envs.bounded import BoundedNavGymEnv
 from mjnav.envs.gym_env import NavGymEnv
-from mjnav.envs.workers import _EnvGroup, _layout, _views, step_in_stages
+from mjnav.envs.workers import _EnvGroup, _layout, _views, rollout_parts, step_in_stages
 
 #: Short episodes (timeouts), a wide goal (successes), a privileged critic block and a crowd.
 OVERRIDES = ["timing.episode_steps=6", "reward.goal_tolerance=5.0", "observation.critic_pedestrians=2", "crowd.count=6"]
@@ -198,3 +198,10 @@ def test_the_stages_of_a_step_do_not_go_on_past_a_reset() -> None:
         next(stages)
     assert env.task.core.steps == 0
     assert len(env.step(np.zeros(4, np.float32))) == 5
+
+
+def test_rollout_parts_split_a_block_evenly() -> None:
+    """Contiguous parts of at most the size, as even as possible; 0 or a larger size: one part."""
+    assert rollout_parts(range(4, 14), 4) == [range(4, 8), range(8, 11), range(11, 14)]
+    assert rollout_parts(range(0, 32), 8) == [range(0, 8), range(8, 16), range(16, 24), range(24, 32)]
+    assert rollout_parts(range(3, 6), 0) == [range(3, 6)] == rollout_parts(range(3, 6), 8)
