@@ -1,25 +1,30 @@
 """``mjnav bench collect``: PPO collection steps/s for 1, 2, ... workers, with where each step goes.
 
-    mjnav bench collect task=stage7 [workers=1,2] [main_envs=-1,30] [pipeline=true,false] [rounds=3]
-        [train.steps_per_env=64] [train.device=cuda]
+    mjnav bench collect task=stage7 [workers=1,2] [main_envs=-1,30] [pipeline=true,false]
+        [rollouts=true,false] [rollout_envs=16,0] [rounds=3] [train.steps_per_env=64] [train.device=cuda]
 
 Builds one training runner (:func:`mjnav.train.runner.build_runner`, the adapter of
 ``train.num_envs`` environments, rsl-rl's PPO) per worker count in ``workers`` (and, with 2 or
-more workers, per trainer share in ``main_envs``: ``train.main_envs``; and per setting in
-``pipeline``: ``train.pipeline``) and one environment alone, then times them in ``rounds``
+more workers, per trainer share in ``main_envs``: ``train.main_envs``; per setting in
+``pipeline``: ``train.pipeline``; and, with the pipeline, per setting in ``rollouts``:
+``train.rollouts``, with rollouts per part size in ``rollout_envs``: ``train.rollout_envs``) and
+one environment alone, then times them in ``rounds``
 interleaved rounds (each round: one PPO iteration of every runner, ``single_steps``
 random-action steps of the single environment, in alternating order; :mod:`mjnav.timing`).
 Prints, with medians over rounds:
 
 * steps/s: collection (the rollout loop), the adapter's ``env.step`` alone (comparable with the
-  single environment), the whole iteration (collection and update), and their ratios to 1
+  single environment; with worker rollouts, the rollout, the workers' actor passes included, and
+  the serving of its steps), the whole iteration (collection and update), and their ratios to 1
   worker and to the single environment: ratios of the medians, then the same ratios taken
   within each round (median and range over rounds; the blocks of one round run seconds apart,
   so the machine's drift over a run cancels);
 * where one rollout step (all environments) goes, ms: the trainer's policy inference
   (``alg.act``; with the pipeline also the dispatch of the actions and the previous step's
-  storage and logger, so that the storage and logger columns then hold only their hand-over), then inside ``env.step`` this process's own block, its wait for the worker
-  processes, the transfers through the shared buffers and the adapter's bookkeeping, then the
+  storage and logger, so that the storage and logger columns then hold only their hand-over;
+  with worker rollouts, the rest of ``alg.act``), then inside ``env.step`` (with worker rollouts
+  inside the rollout) this process's own block, its wait for the worker processes (with worker
+  rollouts: the rest of the rollout, this process's actor passes included), the transfers through the shared buffers and the adapter's bookkeeping, then the
   PPO storage (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed
   inside the worker processes, their mean and longest step and the share of the step they are
   busy (the rest they wait for the trainer);
@@ -78,6 +83,11 @@ class CollectOptions:
             trainer dispatches each step's actions before its value estimates and storage, or
             keeps rsl-rl's order; with ``true`` the policy part holds the dispatch and the previous
             step's storage and logger as well (:mod:`mjnav.train.ppo`).
+        rollouts: ``train.rollouts`` settings to compare with the pipeline, comma-separated
+            (``true,false``): each worker runs the whole rollout of its environments with a copy of
+            the actor, or they step in lockstep, step by step.
+        rollout_envs: ``train.rollout_envs`` values to compare with rollouts, comma-separated
+            (most environments a worker runs together through a rollout; 0: its whole block).
         rounds: Interleaved timing rounds (one PPO iteration of every configuration per round).
         single_steps: Random-action steps of the single environment per round.
     """
@@ -86,6 +96,8 @@ class CollectOptions:
     workers: str = "1,2"
     main_envs: str = "-1"
     pipeline: str = "true"
+    rollouts: str = "true"
+    rollout_envs: str = "16"
     rounds: int = 3
     single_steps: int = 400
 
@@ -141,6 +153,7 @@ class CollectBench:
         self._timed(runner.logger, "process_env_step", "logger")
         self._timed(runner.alg, "compute_returns", "returns")
         self._timed(runner.alg, "update", "update")
+        self._timed(runner.env, "rollout", "rollout")
         step, log = runner.env.step, runner.logger.log
 
         @functools.wraps(step)
@@ -189,8 +202,10 @@ class CollectBench:
         """ms per rollout step (all environments) of each of :data:`STEP_PARTS`."""
         s = self.seconds
         n = max(s["steps"], 1)
-        parts = {"policy": s["policy"], "own block": s["own_block"], "wait": s["wait"],
-                 "transfer": s["transfer"], "adapter": s["env.step"] - s["own_block"] - s["wait"] - s["transfer"],
+        wait = s["wait"] + max(s["rollout"] - s["own_block"], 0.0)  # a rollout: the rest of it
+        parts = {"policy": s["policy"] - s["rollout"], "own block": s["own_block"], "wait": wait,
+                 "transfer": s["transfer"],
+                 "adapter": s["env.step"] + s["rollout"] - s["own_block"] - wait - s["transfer"],
                  "storage": s["storage"], "logger": s["logger"]}
         parts["rest"] = s["collection"] - sum(parts.values())
         return {k: 1e3 * v / n for k, v in parts.items()}
@@ -216,7 +231,8 @@ def run(parsed: Parsed, argv: list[str]) -> int:
             raise ConfigError(f"rounds and single_steps must be >= 1, got {opts.rounds} and {opts.single_steps}")
         config = load_task(opts.task, list(parsed.task))
         train = load_train(list(parsed.train))
-        configs = _configs(parse_workers(opts.workers, train.num_envs), opts.main_envs, opts.pipeline, train)
+        configs = _configs(parse_workers(opts.workers, train.num_envs), opts.main_envs, opts.pipeline, train,
+                           opts.rollouts, opts.rollout_envs)
     except (ConfigError, ValueError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -224,28 +240,48 @@ def run(parsed: Parsed, argv: list[str]) -> int:
     return 0
 
 
-def _configs(counts: list[int], shares: str, pipeline: str, train: TrainConfig) -> dict[str, TrainConfig]:
+def _configs(counts: list[int], shares: str, pipeline: str, train: TrainConfig, rollouts: str = "true",
+             parts: str = "8") -> dict[str, TrainConfig]:
     """Training configs by row label: each worker count, with each trainer share when it has >= 2
-    workers, and each pipeline setting (labelled ``rsl-rl order`` when off).
+    workers, each pipeline setting (labelled ``rsl-rl order`` when off), with the pipeline each
+    rollouts setting (``step by step`` when off) and with rollouts each part size (``parts of K``
+    when there are several).
 
     Raises:
-        ConfigError: ``shares`` is not a list of -1 or counts in [1, num_envs), or ``pipeline``
-            not a list of true and false.
+        ConfigError: ``shares`` is not a list of -1 or counts in [1, num_envs), ``parts`` not a list
+            of counts >= 0, or ``pipeline`` or ``rollouts`` not a list of true and false.
     """
-    try:
-        values = [int(v) for v in str(shares).split(",")]
-    except ValueError:
-        raise ConfigError(f"main_envs: expected comma-separated integers, got {shares!r}") from None
-    settings = [v.strip().lower() for v in str(pipeline).split(",")]
-    if any(v not in ("true", "false") for v in settings):  # "".split(",") is [""]: refused too
-        raise ConfigError(f"pipeline: expected comma-separated true or false, got {pipeline!r}")
+    values, sizes = _integers("main_envs", shares), _integers("rollout_envs", parts)
+    if any(size < 0 for size in sizes):
+        raise ConfigError(f"rollout_envs: expected counts >= 0, got {parts!r}")
+    modes = [(p, r, k) for p in _switches("pipeline", pipeline)
+             for r in (_switches("rollouts", rollouts) if p else [False]) for k in (sizes if r else [sizes[0]])]
     configs = {}
     for w in counts:
         for m in values if w >= 2 else [-1]:
-            for setting in settings:
-                label = (f"{w}" if m < 0 else f"{w}, main {m}") + ("" if setting == "true" else ", rsl-rl order")
-                configs[label] = load_train([f"workers={w}", f"main_envs={m}", f"pipeline={setting}"], base=train)
+            for piped, rolled, size in modes:
+                label = (f"{w}" if m < 0 else f"{w}, main {m}") + (
+                    (f", parts of {size}" if len(sizes) > 1 else "") if rolled
+                    else ", step by step" if piped else ", rsl-rl order")
+                configs[label] = load_train([f"workers={w}", f"main_envs={m}", f"pipeline={str(piped).lower()}",
+                                             f"rollouts={str(rolled).lower()}", f"rollout_envs={size}"], base=train)
     return configs
+
+
+def _integers(name: str, text: str) -> list[int]:
+    """A comma-separated list of integers (ConfigError otherwise)."""
+    try:
+        return [int(v) for v in str(text).split(",")]
+    except ValueError:
+        raise ConfigError(f"{name}: expected comma-separated integers, got {text!r}") from None
+
+
+def _switches(name: str, text: str) -> list[bool]:
+    """A comma-separated list of true and false (ConfigError otherwise; the empty string too)."""
+    settings = [v.strip().lower() for v in str(text).split(",")]
+    if any(v not in ("true", "false") for v in settings):
+        raise ConfigError(f"{name}: expected comma-separated true or false, got {text!r}")
+    return list(dict.fromkeys(v == "true" for v in settings))
 
 
 def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None:
@@ -268,11 +304,11 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
                         rates["single"].append(single.block() / (time.perf_counter() - start))
                         continue
                     seconds = benches[name].seconds
-                    before = seconds["collection"], seconds["env.step"], seconds["steps"]
+                    before = seconds["collection"], seconds["env.step"] + seconds["rollout"], seconds["steps"]
                     steps = benches[name].block()
                     collection[name].append(steps / (seconds["collection"] - before[0]))
                     env_step[name].append(benches[name].train.num_envs * (seconds["steps"] - before[2])
-                                          / (seconds["env.step"] - before[1]))
+                                          / (seconds["env.step"] + seconds["rollout"] - before[1]))
     finally:
         single.env.close()
         for b in benches.values():

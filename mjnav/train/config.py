@@ -136,6 +136,14 @@ class TrainConfig:
             estimates and storage, so that those overlap the workers' stepping
             (:class:`mjnav.train.ppo.PipelinedPPO`); the rollouts and updates are rsl-rl's bit for
             bit either way. False: rsl-rl's PPO unchanged.
+        rollouts: With ``pipeline`` on CPU: each worker (the trainer included) runs the whole
+            rollout of its environments with a copy of the actor and the sampling noise drawn as
+            rsl-rl draws it, without waiting for the others at every step; the trainer then
+            stores the recorded steps. Bit for bit rsl-rl's rollouts (checked before every
+            rollout; it falls back to the per-step pipeline otherwise). False: step by step.
+        rollout_envs: Most environments a worker runs together through a rollout: its block in
+            parts of this many, one part after another, so that a part stays in the cache (0: the
+            whole block). Rollouts do not depend on it.
         start_method: Worker start method (``forkserver`` or ``spawn``; never plain fork with torch).
         iterations: Total PPO iterations of the run (a resumed run continues up to this).
         steps_per_env: Rollout length per environment and iteration.
@@ -179,6 +187,8 @@ class TrainConfig:
     workers: int = -1
     main_envs: int = -1
     pipeline: bool = True
+    rollouts: bool = True
+    rollout_envs: int = 16
     start_method: Literal["forkserver", "spawn"] = "forkserver"
     iterations: int = 1000
     steps_per_env: int = 256
@@ -216,6 +226,7 @@ class TrainConfig:
         _check(self.main_envs == -1 or self.workers < 2 or self.main_envs <= self.num_envs - self.workers + 1,
                "main_envs", f"must leave each of the other {self.workers - 1} workers an environment "
                f"(<= {self.num_envs - self.workers + 1} of {self.num_envs})")
+        _check(self.rollout_envs >= 0, "rollout_envs", "must be >= 0 (0: a worker's whole block)")
         _check(self.iterations >= 1 and self.steps_per_env >= 1, "iterations", "must be >= 1")
         _check(self.learning_rate > 0, "learning_rate", "must be > 0")
         _check(0 < self.gamma <= 1 and 0 <= self.lam <= 1, "gamma", "needs 0 < gamma <= 1, 0 <= lam <= 1")

@@ -130,6 +130,7 @@ def make_vec_env(
         max_episode_length=task.timing.episode_steps,
         start_method=train.start_method,
         main_envs=train.main_envs if train.main_envs >= 0 else None,
+        rollout_envs=train.rollout_envs,
         cfg={"task": task.name},
     )
 
@@ -152,6 +153,7 @@ def rsl_config(train: TrainConfig, label: str = "", privileged_critic: bool = Fa
         },
         "algorithm": {
             "class_name": "mjnav.train.ppo:PipelinedPPO" if train.pipeline else "PPO",
+            **({"worker_rollouts": train.rollouts} if train.pipeline else {}),
             "num_learning_epochs": train.epochs,
             "num_mini_batches": train.minibatches,
             "clip_param": train.clip,
