@@ -14,17 +14,17 @@ random-action steps of the single environment, in alternating order; :mod:`mjnav
 Prints, with medians over rounds:
 
 * steps/s: collection (the rollout loop), the adapter's ``env.step`` alone (comparable with the
-  single environment; with worker rollouts, the rollout, the workers' actor passes included, and
-  the serving of its steps), the whole iteration (collection and update), and their ratios to 1
+  single environment; with worker rollouts, the rollout less this process's policy calls in it,
+  and the serving of its steps), the whole iteration (collection and update), and their ratios to 1
   worker and to the single environment: ratios of the medians, then the same ratios taken
   within each round (median and range over rounds; the blocks of one round run seconds apart,
   so the machine's drift over a run cancels);
 * where one rollout step (all environments) goes, ms: the trainer's policy inference
   (``alg.act``; with the pipeline also the dispatch of the actions and the previous step's
   storage and logger, so that the storage and logger columns then hold only their hand-over;
-  with worker rollouts, the rest of ``alg.act``), then inside ``env.step`` (with worker rollouts
-  inside the rollout) this process's own block, its wait for the worker processes (with worker
-  rollouts: the rest of the rollout, this process's actor passes included), the transfers through the shared buffers and the adapter's bookkeeping, then the
+  with worker rollouts, this process's policy calls in the rollout and the rest of ``alg.act``),
+  then inside ``env.step`` (with worker rollouts inside the rollout) this process's own block,
+  its wait for the worker processes (with worker rollouts: the rest of the rollout), the transfers through the shared buffers and the adapter's bookkeeping, then the
   PPO storage (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed
   inside the worker processes, their mean and longest step and the share of the step they are
   busy (the rest they wait for the trainer);
@@ -165,6 +165,7 @@ class CollectBench:
             for key in ("own_block", "wait", "transfer", "env_step", "worker_step", "worker_step_max",
                         "worker_cpu_max"):
                 seconds[key] += perf[f"perf/{key}_ms"] / 1e3
+            seconds["rollout policy"] += perf.get("perf/rollout_policy_ms", 0.0) / 1e3
             seconds["steps"] += 1
             return result
 
@@ -202,10 +203,11 @@ class CollectBench:
         """ms per rollout step (all environments) of each of :data:`STEP_PARTS`."""
         s = self.seconds
         n = max(s["steps"], 1)
-        wait = s["wait"] + max(s["rollout"] - s["own_block"], 0.0)  # a rollout: the rest of it
-        parts = {"policy": s["policy"] - s["rollout"], "own block": s["own_block"], "wait": wait,
+        chose = s["rollout policy"]  # this process's policy calls within the rollouts
+        wait = s["wait"] + max(s["rollout"] - s["own_block"] - chose, 0.0)  # the rest of the rollouts
+        parts = {"policy": s["policy"] - s["rollout"] + chose, "own block": s["own_block"], "wait": wait,
                  "transfer": s["transfer"],
-                 "adapter": s["env.step"] + s["rollout"] - s["own_block"] - wait - s["transfer"],
+                 "adapter": s["env.step"] + s["rollout"] - chose - s["own_block"] - wait - s["transfer"],
                  "storage": s["storage"], "logger": s["logger"]}
         parts["rest"] = s["collection"] - sum(parts.values())
         return {k: 1e3 * v / n for k, v in parts.items()}
@@ -304,17 +306,22 @@ def bench(config, configs: dict[str, TrainConfig], opts: CollectOptions) -> None
                         rates["single"].append(single.block() / (time.perf_counter() - start))
                         continue
                     seconds = benches[name].seconds
-                    before = seconds["collection"], seconds["env.step"] + seconds["rollout"], seconds["steps"]
+                    before = seconds["collection"], _stepping(seconds), seconds["steps"]
                     steps = benches[name].block()
                     collection[name].append(steps / (seconds["collection"] - before[0]))
                     env_step[name].append(benches[name].train.num_envs * (seconds["steps"] - before[2])
-                                          / (seconds["env.step"] + seconds["rollout"] - before[1]))
+                                          / (_stepping(seconds) - before[1]))
     finally:
         single.env.close()
         for b in benches.values():
             b.close()
     _print(config, train, opts, np.array(rates["single"]), {w: np.array(v) for w, v in collection.items()},
            {w: np.array(v) for w, v in env_step.items()}, benches)
+
+
+def _stepping(seconds: Counter) -> float:
+    """Seconds of ``env.step`` and of the rollouts, less this process's policy calls within them."""
+    return seconds["env.step"] + seconds["rollout"] - seconds["rollout policy"]
 
 
 def _paired(values: np.ndarray, reference: np.ndarray) -> str:

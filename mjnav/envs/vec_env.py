@@ -24,6 +24,8 @@ pipes; the rest of a step is the adapter's own bookkeeping (episode clock, logs)
 worker processes took to step their blocks, timed inside them (0 without worker processes):
 ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency; ``perf/worker_cpu_max_ms`` is
 the largest CPU time among them (without the time spent waiting for a core on a shared machine).
+A step served from a rollout also logs ``perf/rollout_policy_ms``, the time this process's policy
+calls took for its own block in that step of the rollout.
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 :meth:`NavVecEnv.dispatch` starts a step early: the worker processes step with the actions while
@@ -505,9 +507,12 @@ class NavVecEnv(VecEnv):
             self._replay = None
         step = {name: rec[name][t] for name in _RESULTS}
         self._read_observations(step)
-        self._split = (replay.replies[t][-1][3] if self._remote < len(self._handles) else 0.0, 0.0)
+        own = replay.replies[t][-1] if self._remote < len(self._handles) else None
+        self._split = (0.0, 0.0) if own is None else (own[3], 0.0)
         lengths = self.episode_length_buf.cpu().numpy() + 1
-        return self._results(step, lengths, replay.replies[t], start, time.perf_counter() - start)
+        result = self._results(step, lengths, replay.replies[t], start, time.perf_counter() - start)
+        result[3]["log"]["perf/rollout_policy_ms"] = 0.0 if own is None else 1e3 * own[5]
+        return result
 
     def can_record(self, steps: int, aux_dim: int = 0) -> bool:
         """Whether a :meth:`rollout` of ``steps`` steps fits: its record, in shared memory with worker

@@ -200,7 +200,8 @@ class _EnvGroup:
             part_size: Most environments stepped together.
 
         Returns:
-            Each step's reply (:meth:`step`'s, summed over the parts), and None, or
+            Each step's reply (:meth:`step`'s with the seconds the policy took, summed over the
+            parts), and None, or
             ``(t, environments)`` when the policy's actions at step ``t`` were not finite for those
             environments (the rollout stopped there, before stepping them).
         """
@@ -222,7 +223,9 @@ class _EnvGroup:
         replies = []
         for t in range(steps):
             critic = buf["critic"][rows] if buf["critic"].shape[1] else None
+            start = time.perf_counter()
             actions, aux = policy(t, part, buf["obs"][rows], critic)
+            chose = time.perf_counter() - start
             actions = np.asarray(actions, dtype=np.float32)
             finite = np.isfinite(actions).all(axis=1)
             if not finite.all():
@@ -231,7 +234,7 @@ class _EnvGroup:
             rec["aux"][t, rows] = aux
             lengths += 1
             buf["force"][rows] = lengths >= limit
-            replies.append(self.step(part))
+            replies.append((*self.step(part), chose))
             for name in _RESULTS:
                 rec[name][t, rows] = buf[name][rows]
             lengths[buf["terminated"][rows] | buf["truncated"][rows]] = 0
@@ -311,14 +314,15 @@ def rollout_parts(indices: range, size: int) -> list[range]:
             for p in np.array_split(np.arange(len(indices)), count)]
 
 
-def _summed(replies: tuple[tuple, ...]) -> tuple[Counter, Counter, Counter, float, float]:
-    """Replies of :meth:`_EnvGroup.step` for parts of a group, as one: sums of each entry."""
+def _summed(replies: tuple[tuple, ...]) -> tuple:
+    """Replies of one rollout step for parts of a group (:meth:`_EnvGroup.step`'s and the seconds the
+    policy took), as one: sums of each entry."""
     terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
     for reply in replies:
         terms.update(reply[0])
         mpc_sum.update(reply[1])
         mpc_count.update(reply[2])
-    return terms, mpc_sum, mpc_count, sum(r[3] for r in replies), sum(r[4] for r in replies)
+    return terms, mpc_sum, mpc_count, *(sum(r[k] for r in replies) for k in (3, 4, 5))
 
 
 def _blame(exc: Exception, index: int) -> None:

@@ -477,12 +477,13 @@ def test_a_rollout_serves_what_stepping_gives(workers: dict, critic: int, parts:
 
 
 def test_a_rollout_splits_the_step_time_like_a_step() -> None:
-    """Served steps report this process's own block and the worker processes' step times."""
+    """Served steps report this process's own block, its policy calls and the worker processes' step times."""
     with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
         env.rollout(_table(3, 4), 3, aux_dim=2)
         for t in range(3):
             log = env.step(env.recorded()[0])[3]["log"]
             assert log["perf/own_block_ms"] > 0.0 and log["perf/worker_step_ms"] > 0.0
+            assert log["perf/rollout_policy_ms"] > 0.0
 
 
 def test_rollout_misuse_is_refused() -> None:
