@@ -204,7 +204,7 @@ class CollectBench:
         s = self.seconds
         n = max(s["steps"], 1)
         chose = s["rollout policy"]  # this process's policy calls within the rollouts
-        wait = s["wait"] + max(s["rollout"] - s["own_block"] - chose, 0.0)  # the rest of the rollouts
+        wait = s["wait"]  # with rollouts: its wait for the worker processes at their end, spread over the steps
         parts = {"policy": s["policy"] - s["rollout"] + chose, "own block": s["own_block"], "wait": wait,
                  "transfer": s["transfer"],
                  "adapter": s["env.step"] + s["rollout"] - chose - s["own_block"] - wait - s["transfer"],
@@ -243,7 +243,7 @@ def run(parsed: Parsed, argv: list[str]) -> int:
 
 
 def _configs(counts: list[int], shares: str, pipeline: str, train: TrainConfig, rollouts: str = "true",
-             parts: str = "8") -> dict[str, TrainConfig]:
+             parts: str = "16") -> dict[str, TrainConfig]:
     """Training configs by row label: each worker count, with each trainer share when it has >= 2
     workers, each pipeline setting (labelled ``rsl-rl order`` when off), with the pipeline each
     rollouts setting (``step by step`` when off) and with rollouts each part size (``parts of K``

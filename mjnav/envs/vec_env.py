@@ -68,6 +68,7 @@ from mjnav.envs.workers import (
     OUTCOMES,
     EnvError,
     EnvFn,
+    RolloutPolicy,
     _context,
     _default_workers,
     _layout,
@@ -75,7 +76,6 @@ from mjnav.envs.workers import (
     _record_layout,
     _views,
     _WorkerHandle,
-    RolloutPolicy,
     rollout_parts,
 )
 from mjnav.schema import ConfigError
@@ -109,10 +109,12 @@ def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range
 @dataclasses.dataclass
 class _Replay:
     """A rollout being served by :meth:`NavVecEnv.step`: its length, each step's worker replies
-    (in the order of the handles) and the steps served so far."""
+    (in the order of the handles), this process's wait for the others spread over the steps, and
+    the steps served so far."""
 
     steps: int
     replies: list[list[tuple]]
+    wait_s: float  # this process's wait for the worker processes in the rollout, per step
     served: int = 0
 
 
@@ -276,12 +278,13 @@ class NavVecEnv(VecEnv):
             self.close()
             raise
 
-    def _finish(self, command: str, arg: Any = None) -> list[Any]:
+    def _finish(self, command: str, arg: Any = None, timeout: float | None = None) -> list[Any]:
         """Run ``command`` on this process's own block (when it steps one), then collect every reply.
 
         The worker processes must have been sent ``command`` (:meth:`_send`). Notes in ``_split``
         the seconds this process spent on its own block (0 when it steps none) and the seconds it
-        then waited for the replies; closes everything on failure.
+        then waited for the replies (at most ``timeout`` each, default ``step_timeout_s``); closes
+        everything on failure.
         """
         try:
             start = time.perf_counter()
@@ -289,7 +292,7 @@ class NavVecEnv(VecEnv):
             for handle in local:
                 handle.request(command, arg)
             ready = time.perf_counter()
-            replies = [handle.result(self.step_timeout_s) for handle in self._handles]
+            replies = [handle.result(timeout or self.step_timeout_s) for handle in self._handles]
             self._split = (ready - start if local else 0.0, time.perf_counter() - ready)
             return replies
         except BaseException:
@@ -440,7 +443,9 @@ class NavVecEnv(VecEnv):
         it runs the block in parts of at most ``rollout_envs`` environments, one after another
         (:attr:`rollout_blocks`: ``policy`` is called for one part at a time).
         :meth:`recorded` gives the actions of the next step to serve (and ``aux``, the policy's
-        other outputs); :meth:`step` with them returns what :meth:`step` alone would have.
+        other outputs); :meth:`step` with them returns what :meth:`step` alone would have (the
+        logged sums of reward terms and MPC statistics to rounding when blocks run in parts).
+        A worker may take ``step_timeout_s`` per step.
 
         Args:
             policy: Picklable ``policy(t, indices, obs, critic) -> (actions, aux)``
@@ -461,15 +466,20 @@ class NavVecEnv(VecEnv):
         self._ensure_record(steps, aux_dim)
         lengths = self.episode_length_buf.cpu().numpy().copy()
         arg = (policy, steps, lengths, self.max_episode_length, self.rollout_envs)
+        start = time.perf_counter()
         self._send("rollout", arg)
-        replies = self._finish("rollout", arg)
+        replies = self._finish("rollout", arg, timeout=self.step_timeout_s * steps)
+        seconds = time.perf_counter() - start
         bad = [failed for _, failed in replies if failed is not None]
         if bad:
             self.close()
             t, envs = min(bad)
             raise ValueError(f"non-finite actions (NaN/inf) at rollout step {t} for envs {envs[:16]}: the "
                              "policy diverged; the adapter is closed (the other workers stepped on)")
-        self._replay = _Replay(steps, [list(step) for step in zip(*(r for r, _ in replies), strict=True)])
+        steps_replies = [list(step) for step in zip(*(r for r, _ in replies), strict=True)]
+        own = [step[-1] for step in steps_replies] if self._remote < len(self._handles) else []
+        waited = seconds - sum(reply[3] + reply[5] for reply in own)  # for the worker processes, at the end
+        self._replay = _Replay(steps, steps_replies, max(waited, 0.0) / steps)
 
     @property
     def rollout_blocks(self) -> list[range]:
@@ -508,10 +518,12 @@ class NavVecEnv(VecEnv):
         step = {name: rec[name][t] for name in _RESULTS}
         self._read_observations(step)
         own = replay.replies[t][-1] if self._remote < len(self._handles) else None
-        self._split = (0.0, 0.0) if own is None else (own[3], 0.0)
+        self._split = (0.0 if own is None else own[3], replay.wait_s)
         lengths = self.episode_length_buf.cpu().numpy() + 1
         result = self._results(step, lengths, replay.replies[t], start, time.perf_counter() - start)
-        result[3]["log"]["perf/rollout_policy_ms"] = 0.0 if own is None else 1e3 * own[5]
+        log = result[3]["log"]
+        log["perf/env_step_ms"] += 1e3 * sum(self._split)  # the step's share of the rollout
+        log["perf/rollout_policy_ms"] = 0.0 if own is None else 1e3 * own[5]
         return result
 
     def can_record(self, steps: int, aux_dim: int = 0) -> bool:
@@ -561,14 +573,16 @@ class NavVecEnv(VecEnv):
             old.close()
 
     def _log_times(self, log: dict[str, Any], replies: list[tuple], start: float, end: float, transfer: float) -> None:
-        """The ``perf/*`` entries of one step (module docstring), in milliseconds."""
-        busy = [reply[3] for reply in replies[: self._remote]]
+        """The ``perf/*`` entries of one step (module docstring), in milliseconds; a rollout's worker
+        processes are busy with their policy calls too (replies' wall and CPU seconds 5 and 6)."""
+        busy = [reply[3] + sum(reply[5:6]) for reply in replies[: self._remote]]
         log["perf/env_step_ms"] = 1e3 * (end - start)
         log["perf/own_block_ms"], log["perf/wait_ms"] = 1e3 * self._split[0], 1e3 * self._split[1]
         log["perf/transfer_ms"] = 1e3 * transfer  # with the send, when this call sent the step
         log["perf/worker_step_ms"] = 1e3 * sum(busy) / len(busy) if busy else 0.0
         log["perf/worker_step_max_ms"] = 1e3 * max(busy, default=0.0)
-        log["perf/worker_cpu_max_ms"] = 1e3 * max((reply[4] for reply in replies[: self._remote]), default=0.0)
+        log["perf/worker_cpu_max_ms"] = 1e3 * max((reply[4] + sum(reply[6:7]) for reply in replies[: self._remote]),
+                                                   default=0.0)
 
     def _checked_actions(self, actions: torch.Tensor) -> np.ndarray:
         """``actions`` as float32 numpy (N, num_actions); ValueError for a wrong shape or NaN/inf."""

@@ -200,8 +200,8 @@ class _EnvGroup:
             part_size: Most environments stepped together.
 
         Returns:
-            Each step's reply (:meth:`step`'s with the seconds the policy took, summed over the
-            parts), and None, or
+            Each step's reply (:meth:`step`'s, then the wall and CPU seconds the policy took,
+            summed over the parts), and None, or
             ``(t, environments)`` when the policy's actions at step ``t`` were not finite for those
             environments (the rollout stopped there, before stepping them).
         """
@@ -223,10 +223,10 @@ class _EnvGroup:
         replies = []
         for t in range(steps):
             critic = buf["critic"][rows] if buf["critic"].shape[1] else None
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.thread_time()
             actions, aux = policy(t, part, buf["obs"][rows], critic)
-            chose = time.perf_counter() - start
-            actions = np.asarray(actions, dtype=np.float32)
+            chose = time.perf_counter() - start, time.thread_time() - cpu
+            actions, aux = _checked_outputs(actions, aux, rec, part)
             finite = np.isfinite(actions).all(axis=1)
             if not finite.all():
                 return replies, (t, (part.start + np.flatnonzero(~finite)).tolist())
@@ -234,7 +234,7 @@ class _EnvGroup:
             rec["aux"][t, rows] = aux
             lengths += 1
             buf["force"][rows] = lengths >= limit
-            replies.append((*self.step(part), chose))
+            replies.append((*self.step(part), *chose))
             for name in _RESULTS:
                 rec[name][t, rows] = buf[name][rows]
             lengths[buf["terminated"][rows] | buf["truncated"][rows]] = 0
@@ -315,14 +315,28 @@ def rollout_parts(indices: range, size: int) -> list[range]:
 
 
 def _summed(replies: tuple[tuple, ...]) -> tuple:
-    """Replies of one rollout step for parts of a group (:meth:`_EnvGroup.step`'s and the seconds the
-    policy took), as one: sums of each entry."""
+    """Replies of one rollout step for parts of a group (:meth:`_EnvGroup.step`'s, then the wall and
+    CPU seconds the policy took), as one: sums of each entry."""
     terms, mpc_sum, mpc_count = Counter(), Counter(), Counter()
     for reply in replies:
         terms.update(reply[0])
         mpc_sum.update(reply[1])
         mpc_count.update(reply[2])
-    return terms, mpc_sum, mpc_count, *(sum(r[k] for r in replies) for k in (3, 4, 5))
+    return terms, mpc_sum, mpc_count, *(sum(r[k] for r in replies) for k in (3, 4, 5, 6))
+
+
+def _checked_outputs(actions: Any, aux: Any, rec: dict[str, np.ndarray], part: range) -> tuple[np.ndarray, np.ndarray]:
+    """A rollout policy's actions and ``aux`` for ``part`` as float32 arrays of the record's widths.
+
+    Raises:
+        ValueError: Another shape (nothing is broadcast over the environments).
+    """
+    actions, aux = np.asarray(actions, dtype=np.float32), np.asarray(aux, dtype=np.float32)
+    wanted = ((len(part), rec["actions"].shape[2]), (len(part), rec["aux"].shape[2]))
+    if (actions.shape, aux.shape) != wanted:
+        raise ValueError(f"the rollout policy gave actions {actions.shape} and aux {aux.shape} for envs "
+                         f"{part.start}-{part.stop - 1}; expected {wanted[0]} and {wanted[1]}")
+    return actions, aux
 
 
 def _blame(exc: Exception, index: int) -> None:

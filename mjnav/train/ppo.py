@@ -79,16 +79,14 @@ class PipelinedPPO(PPO):
         recurrent = self.actor.is_recurrent or self.critic.is_recurrent
         dispatch = getattr(env, "dispatch", None)
         self._store_deferred()
+        if getattr(env, "replaying", False):  # a rollout left part-served (an earlier learn() raised)
+            warnings.warn("the environment was still serving a rollout: it is reset", stacklevel=2)
+            env.reset()
         self._dispatch = None if recurrent or self.rnd is not None or not callable(dispatch) else dispatch
         rollouts = (self.worker_rollouts and self._dispatch is not None and callable(getattr(env, "rollout", None))
                     and torch.device(self.device).type == "cpu" and not self.rollout_fallbacks
                     and type(self.actor.distribution) is GaussianDistribution)
         self._rollout_env = env if rollouts else None
-
-    @property
-    def rolling_out(self) -> bool:
-        """Whether the adapter's workers run each rollout (:meth:`connect`)."""
-        return self._rollout_env is not None
 
     @property
     def pipelined(self) -> bool:
@@ -100,7 +98,7 @@ class PipelinedPPO(PPO):
         if self._dispatch is None:
             return super().act(obs)
         env = self._rollout_env
-        if env is not None and (env.replaying or self._start_rollout(env, obs)):
+        if env is not None and (env.replaying or (self.worker_rollouts and self._start_rollout(env, obs))):
             actions, outputs = env.recorded()
             self.actor.distribution.update(outputs[:, :-1])  # the actor's output for obs, as in its forward
             values = outputs[:, -1:]  # the critic's
@@ -139,12 +137,16 @@ class PipelinedPPO(PPO):
                 noise[t].normal_()
         policy = RolloutActor(_detached_copy(actor), _detached_copy(critic), std, noise)
         env.rollout(policy, steps, aux_dim=mean.shape[1] + 1)
+        if not torch.equal(env.recorded()[1], torch.cat((mean, values), dim=1)):  # the workers' own numerics
+            self._fall_back("the workers' actor or critic outputs differed in the last bits from the trainer's at "
+                            "this rollout's first step (it stands: its log-probabilities use the recorded means)")
         return True
 
     def _fall_back(self, why: str) -> bool:
-        """Turn rollouts off for good (counted, with a warning saying ``why``); False."""
+        """Turn rollouts off for good, after any rollout being served (counted, with a warning
+        saying ``why``); False."""
         self.rollout_fallbacks += 1
-        self._rollout_env = None
+        self.worker_rollouts = False
         warnings.warn(f"{why}: rollouts fall back to the per-step pipeline", stacklevel=3)
         return False
 

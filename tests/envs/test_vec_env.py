@@ -483,7 +483,8 @@ def test_a_rollout_splits_the_step_time_like_a_step() -> None:
         for t in range(3):
             log = env.step(env.recorded()[0])[3]["log"]
             assert log["perf/own_block_ms"] > 0.0 and log["perf/worker_step_ms"] > 0.0
-            assert log["perf/rollout_policy_ms"] > 0.0
+            assert log["perf/rollout_policy_ms"] > 0.0 and log["perf/wait_ms"] >= 0.0
+            assert log["perf/own_block_ms"] + log["perf/wait_ms"] <= log["perf/env_step_ms"]
 
 
 def test_rollout_misuse_is_refused() -> None:
@@ -536,3 +537,19 @@ def test_a_rollout_too_large_for_the_shared_memory_is_refused(monkeypatch: pytes
             env.rollout(_table(3, 4), 3, aux_dim=2)
         assert not env.replaying and not env._closed
         env.step(torch.zeros(4, ACT_DIM))
+
+
+@dataclasses.dataclass(frozen=True)
+class NarrowPolicy(TablePolicy):
+    """Gives one aux column too few."""
+
+    def __call__(self, t: int, indices: range, obs: np.ndarray, critic: np.ndarray | None) -> tuple:
+        actions, aux = super().__call__(t, indices, obs, critic)
+        return actions, aux[:, :1]
+
+
+def test_rollout_policy_outputs_of_another_shape_are_refused(workers: dict) -> None:
+    """A policy giving ``aux`` of another width is an error naming the shapes, not broadcast."""
+    with NavVecEnv(FakeFactory(), num_envs=4, seed=0, **workers) as env:
+        with pytest.raises(EnvError, match=r"aux \(\d, 1\).*expected \(\d, 4\) and \(\d, 2\)"):
+            env.rollout(NarrowPolicy(_table(2, 4).noise), 2, aux_dim=2)

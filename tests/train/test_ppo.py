@@ -10,7 +10,7 @@ from rsl_rl.algorithms import PPO
 
 from mjnav.envs.vec_env import NavVecEnv
 from mjnav.train.config import load_train
-from mjnav.train.ppo import PipelinedPPO, _blocks_agree
+from mjnav.train.ppo import PipelinedPPO, RolloutActor, _blocks_agree
 from mjnav.train.runner import build_runner, learn
 from tests.train.test_train import TINY, fake_env_fn
 
@@ -85,6 +85,28 @@ def test_rollouts_fall_back_where_the_record_does_not_fit(tmp_path: Path, monkey
     assert fallbacks == 1 and calls == {"dispatch": 8, "rollout": 0}
 
 
+def test_rollouts_stop_after_one_whose_outputs_differ(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A rollout whose first recorded outputs differ from the trainer's (forced: the in-process
+    policy's values shifted) is served to its end, then a warning and step by step."""
+    shifted = RolloutActor.__call__
+    monkeypatch.setattr(RolloutActor, "__call__", lambda self, *a: (lambda r: (r[0], r[1] + 1e-3))(shifted(self, *a)))
+    with pytest.warns(UserWarning, match="differed in the last bits from the trainer's"):
+        _, _, (_, calls, _, fallbacks) = _train(tmp_path, "rollouts", 0, iterations=2)
+    assert fallbacks == 1 and calls == {"dispatch": 8, "rollout": 1}
+
+
+def test_connect_resets_an_environment_left_serving_a_rollout(tmp_path: Path) -> None:
+    """An environment still serving a rollout (an earlier learn() stopped part-way) is reset on connect."""
+    with NavVecEnv(fake_env_fn, 8, seed=3, workers=0, max_episode_length=12) as env:
+        alg = build_runner(env, load_train([*TINY, "seed=3"]), tmp_path, label="fake").alg
+        with torch.inference_mode():
+            alg.act(env.get_observations())
+        assert env.replaying
+        with pytest.warns(UserWarning, match="still serving a rollout"):
+            alg.connect(env)
+        assert not env.replaying
+
+
 def test_the_block_check_compares_each_block_with_the_batch(tmp_path: Path) -> None:
     """The check before a rollout: equal for the batch's own rows, not for a changed row."""
     with NavVecEnv(fake_env_fn, 8, seed=3, workers=0, max_episode_length=12) as env:
@@ -101,7 +123,7 @@ def test_the_block_check_compares_each_block_with_the_batch(tmp_path: Path) -> N
 def test_pipeline_keeps_rsl_rl_order_where_it_must(tmp_path: Path) -> None:
     """No dispatch for an environment without one or for a recurrent model; connecting stores any
     step still deferred."""
-    train = load_train([*TINY, "seed=3"])
+    train = load_train([*TINY, "seed=3", "rollouts=false"])
     with NavVecEnv(fake_env_fn, 4, seed=3, workers=0, max_episode_length=12) as env:
         alg = build_runner(env, train, tmp_path, label="fake").alg
         assert isinstance(alg, PipelinedPPO) and alg.pipelined
