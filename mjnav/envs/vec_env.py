@@ -39,7 +39,9 @@ next ``steps`` steps of its block by itself, choosing its environments' actions,
 for the others or for the caller at each step; the record (actions, ``aux``, results) goes to a
 second shared-memory block, and the next ``steps`` calls of :meth:`NavVecEnv.step` serve it in
 order, each returning what ``step`` with those actions returns (its ``perf/*`` times: the own
-block's and the worker processes' step times recorded in the rollout). A worker runs its block in
+block's and the worker processes' step times recorded in the rollout, this process's wait for the
+worker processes at its end spread evenly over the steps, and ``env_step_ms`` the serving plus
+those two). A worker runs its block in
 parts of at most ``rollout_envs`` environments, each part through every step before the next, so
 that a part's environments stay in the cache.
 
