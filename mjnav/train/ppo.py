@@ -70,7 +70,9 @@ class PipelinedPPO(PPO):
         return alg
 
     def connect(self, env: Any) -> None:
-        """Dispatch actions to ``env.dispatch`` from now on, where that keeps rsl-rl's results.
+        """Dispatch actions to ``env.dispatch`` from now on, where that keeps rsl-rl's results; with
+        ``worker_rollouts`` on CPU, a Gaussian actor and an ``env`` offering ``rollout``, run each
+        rollout in its workers instead (module docstring). An ``env`` still serving a rollout is reset.
 
         Not for recurrent actors or critics (their hidden states are reset when a step is
         stored, before the next action) or with RND (its intrinsic reward is computed when a
