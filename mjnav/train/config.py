@@ -137,10 +137,11 @@ class TrainConfig:
             (:class:`mjnav.train.ppo.PipelinedPPO`); the rollouts and updates are rsl-rl's bit for
             bit either way. False: rsl-rl's PPO unchanged.
         rollouts: With ``pipeline`` on CPU: each worker (the trainer included) runs the whole
-            rollout of its environments with a copy of the actor and the sampling noise drawn as
-            rsl-rl draws it, without waiting for the others at every step; the trainer then
-            stores the recorded steps. Bit for bit rsl-rl's rollouts (checked before every
-            rollout; it falls back to the per-step pipeline otherwise). False: step by step.
+            rollout of its environments with copies of the actor and the critic and the sampling
+            noise drawn as rsl-rl draws it, without waiting for the others at every step; the
+            trainer then stores the recorded steps. Bit for bit rsl-rl's rollouts (checked at
+            every rollout; where a part's outputs would differ, as for parts of fewer than 4
+            environments with MKL, it warns and steps the workers in lockstep). False: lockstep.
         rollout_envs: Most environments a worker runs together through a rollout: its block in
             parts of this many, one part after another, so that a part stays in the cache (0: the
             whole block). Rollouts do not depend on it.

@@ -149,7 +149,8 @@ class PipelinedPPO(PPO):
         saying ``why``); False."""
         self.rollout_fallbacks += 1
         self.worker_rollouts = False
-        warnings.warn(f"{why}: rollouts fall back to the per-step pipeline", stacklevel=3)
+        warnings.warn(f"{why}: rollouts fall back to the per-step pipeline (train.rollouts=false chooses it "
+                      "from the start)", stacklevel=3)
         return False
 
     def process_env_step(
