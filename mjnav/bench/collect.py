@@ -24,10 +24,11 @@ Prints, with medians over rounds:
   storage and logger, so that the storage and logger columns then hold only their hand-over;
   with worker rollouts, this process's policy calls in the rollout and the rest of ``alg.act``),
   then inside ``env.step`` (with worker rollouts inside the rollout) this process's own block,
-  its wait for the worker processes (with worker rollouts: the rest of the rollout), the transfers through the shared buffers and the adapter's bookkeeping, then the
-  PPO storage (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed
-  inside the worker processes, their mean and longest step and the share of the step they are
-  busy (the rest they wait for the trainer);
+  its wait for the worker processes (with worker rollouts: the rest of the rollout), the
+  transfers through the shared buffers and the adapter's bookkeeping, then the PPO storage
+  (``alg.process_env_step``), rsl-rl's logger and the rest of the loop; and, timed inside the
+  worker processes, their mean and longest step (with worker rollouts their policy calls
+  included) and the share of the step they are busy (the rest they wait for the trainer);
 * per iteration: the returns (GAE) and the PPO update, seconds;
 * a CPU-time estimate for a machine of its own: the trainer process's CPU time in the rollout
   loop and the slowest worker process's CPU time per step (which leave out waiting for a core

@@ -24,8 +24,12 @@ pipes; the rest of a step is the adapter's own bookkeeping (episode clock, logs)
 worker processes took to step their blocks, timed inside them (0 without worker processes):
 ``wait`` beyond ``worker_step_max - own_block`` is hand-off latency; ``perf/worker_cpu_max_ms`` is
 the largest CPU time among them (without the time spent waiting for a core on a shared machine).
-A step served from a rollout also logs ``perf/rollout_policy_ms``, the time this process's policy
-calls took for its own block in that step of the rollout.
+A step served from a rollout (:meth:`NavVecEnv.rollout`) logs the rollout's times: ``own_block_ms``
+this process's stepping of its block in that step and ``perf/rollout_policy_ms`` its policy calls,
+``wait_ms`` the rest of the rollout spread evenly over its steps (sending the policy to the worker
+processes, the record, the wait for them at the end), ``env_step_ms`` the serving plus
+``own_block_ms`` and ``wait_ms``, and the worker processes' step and CPU times their policy calls
+included (so the hand-off rule above does not apply).
 ``extras["outcomes"]`` holds each environment's outcome code (:data:`OUTCOMES` index) for the step.
 
 :meth:`NavVecEnv.dispatch` starts a step early: the worker processes step with the actions while
@@ -38,12 +42,9 @@ critic) -> (actions, aux)``, :class:`mjnav.train.ppo.RolloutActor` for PPO), eve
 next ``steps`` steps of its block by itself, choosing its environments' actions, without waiting
 for the others or for the caller at each step; the record (actions, ``aux``, results) goes to a
 second shared-memory block, and the next ``steps`` calls of :meth:`NavVecEnv.step` serve it in
-order, each returning what ``step`` with those actions returns (its ``perf/*`` times: the own
-block's and the worker processes' step times recorded in the rollout, this process's wait for the
-worker processes at its end spread evenly over the steps, and ``env_step_ms`` the serving plus
-those two). A worker runs its block in
-parts of at most ``rollout_envs`` environments, each part through every step before the next, so
-that a part's environments stay in the cache.
+order, each returning what ``step`` with those actions returns (``perf/*`` times as above). A
+worker runs its block in parts of at most ``rollout_envs`` environments, each part through every
+step before the next, so that a part's environments stay in the cache.
 
 Seeding: environment ``i``'s first reset uses ``seed + i``; later resets draw from the
 environment's own generator, so the same seed and actions give the same rollouts.
@@ -460,7 +461,8 @@ class NavVecEnv(VecEnv):
                 nothing is started), or the policy gave non-finite actions (the adapter is then
                 closed: the other workers stepped on).
             RuntimeError: A step is dispatched or a rollout is still being served.
-            EnvError: An environment raised or a worker died; the adapter is closed.
+            EnvError: An environment or the policy raised, the policy gave outputs of another
+                shape, or a worker died; the adapter is closed.
         """
         self._check_idle("rollout")
         if steps < 1:

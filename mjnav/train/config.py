@@ -139,9 +139,10 @@ class TrainConfig:
         rollouts: With ``pipeline`` on CPU: each worker (the trainer included) runs the whole
             rollout of its environments with copies of the actor and the critic and the sampling
             noise drawn as rsl-rl draws it, without waiting for the others at every step; the
-            trainer then stores the recorded steps. Bit for bit rsl-rl's rollouts (checked at
-            every rollout; where a part's outputs would differ, as for parts of fewer than 4
-            environments with MKL, it warns and steps the workers in lockstep). False: lockstep.
+            trainer then stores the recorded steps. Bit for bit rsl-rl's rollouts where a part's
+            network outputs equal the whole batch's rows (checked before every rollout; where they
+            would differ, as for parts of fewer than 4 environments with MKL, it warns and steps
+            the workers in lockstep; :mod:`mjnav.train.ppo`). False: lockstep.
         rollout_envs: Most environments a worker runs together through a rollout: its block in
             parts of this many, one part after another, so that a part stays in the cache (0: the
             whole block). Rollouts do not depend on it.

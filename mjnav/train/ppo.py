@@ -24,10 +24,13 @@ worker then runs the whole rollout of its environments, choosing their actions i
 waiting for the others or for the trainer at every step, and evaluates the critic there too;
 ``act`` then takes each step's recorded actions, means and values and stores the transitions as
 before. The actions and values equal rsl-rl's when the actor's and the critic's outputs for a
-block of rows equal their rows of the whole batch's; this is checked before every rollout on its
-first observations, and a rollout that would differ (or whose record would not fit
-in the shared memory) falls back to the per-step pipeline for good (counted in
-:attr:`PipelinedPPO.rollout_fallbacks`, with a warning).
+block of rows equal their rows of the whole batch's. This is checked in the trainer before every
+rollout, on its first observations: a rollout that would differ (or whose record would not fit in
+the shared memory) is not started, and collection falls back to the per-step pipeline for good
+(counted in :attr:`PipelinedPPO.rollout_fallbacks`, with a warning). After the rollout the
+workers' own first outputs are compared with the trainer's: should they differ (another kernel
+in a worker process), that rollout is kept, consistent in itself (its log-probabilities come from
+the recorded means) but not rsl-rl's in the last bits, and the later ones fall back, with a warning.
 """
 
 from __future__ import annotations
@@ -59,7 +62,7 @@ class PipelinedPPO(PPO):
         self._deferred: list[tuple[Callable, tuple]] = []  # calls kept for the next act
         self.worker_rollouts = worker_rollouts
         self._rollout_env: Any = None  # the adapter running rollouts (None: step by step)
-        self.rollout_fallbacks = 0  # rollouts refused because a block's actions would differ
+        self.rollout_fallbacks = 0  # times rollouts were turned off (module docstring)
 
     @staticmethod
     def construct_algorithm(obs: TensorDict, env: Any, cfg: dict, device: str) -> PPO:
@@ -72,7 +75,9 @@ class PipelinedPPO(PPO):
     def connect(self, env: Any) -> None:
         """Dispatch actions to ``env.dispatch`` from now on, where that keeps rsl-rl's results; with
         ``worker_rollouts`` on CPU, a Gaussian actor and an ``env`` offering ``rollout``, run each
-        rollout in its workers instead (module docstring). An ``env`` still serving a rollout is reset.
+        rollout in its workers instead (module docstring). An ``env`` still serving a rollout (an
+        earlier ``learn()`` raised within it) is reset, so that its state matches its observations;
+        the storage that ``learn()`` left part-filled is rsl-rl's matter, as without rollouts.
 
         Not for recurrent actors or critics (their hidden states are reset when a step is
         stored, before the next action) or with RND (its intrinsic reward is computed when a
@@ -127,7 +132,8 @@ class PipelinedPPO(PPO):
             latent, critic_latent = actor.get_latent(obs), critic.get_latent(obs)
             mean, values = actor.mlp(latent), critic.mlp(critic_latent)
             blocks = env.rollout_blocks
-            if not (_blocks_agree(actor, latent, mean, blocks) and _blocks_agree(critic, critic_latent, values, blocks)):
+            agree = _blocks_agree(actor, latent, mean, blocks) and _blocks_agree(critic, critic_latent, values, blocks)
+            if not agree:
                 return self._fall_back("the actor's or critic's output for a block of environments differs from "
                                        "the whole batch's in the last bits")
             if not env.can_record(steps, mean.shape[1] + 1):

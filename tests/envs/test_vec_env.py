@@ -484,7 +484,6 @@ def test_a_rollout_splits_the_step_time_like_a_step() -> None:
             log = env.step(env.recorded()[0])[3]["log"]
             assert log["perf/own_block_ms"] > 0.0 and log["perf/worker_step_ms"] > 0.0
             assert log["perf/rollout_policy_ms"] > 0.0 and log["perf/wait_ms"] >= 0.0
-            assert log["perf/own_block_ms"] + log["perf/wait_ms"] <= log["perf/env_step_ms"]
 
 
 def test_rollout_misuse_is_refused() -> None:
@@ -530,7 +529,8 @@ def test_a_rollout_too_large_for_the_shared_memory_is_refused(monkeypatch: pytes
     with a clear error before anything starts; the adapter goes on stepping."""
     with NavVecEnv(FakeFactory(), num_envs=4, seed=0, workers=2) as env:
         assert env.can_record(3, 2)
-        monkeypatch.setattr("mjnav.envs.vec_env.os.statvfs", lambda path: os.statvfs_result((4096, 4096, 10, 0, 0, 0, 0, 0, 0, 255)))
+        full = os.statvfs_result((4096, 4096, 10, 0, 0, 0, 0, 0, 0, 255))  # no block free
+        monkeypatch.setattr("mjnav.envs.vec_env.os.statvfs", lambda path: full)
         monkeypatch.setattr("mjnav.envs.vec_env.os.path.isdir", lambda path: True)
         assert not env.can_record(3, 2)
         with pytest.raises(ValueError, match="MB of shared memory"):

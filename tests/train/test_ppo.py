@@ -31,8 +31,7 @@ def _train(tmp_path: Path, mode: str, workers: int, iterations: int = 2, num_env
         runner = build_runner(env, train, tmp_path / f"{mode}-{workers}", label="fake")
         calls = {"dispatch": 0, "rollout": 0}
         for name in calls:
-            method = getattr(env, name)
-            setattr(env, name, lambda *a, _m=method, _n=name, **k: (calls.__setitem__(_n, calls[_n] + 1), _m(*a, **k))[1])
+            setattr(env, name, _counting(getattr(env, name), calls, name))
         learn(runner, iterations)  # connects the pipeline to runner.env, so to the counting methods
         storage = runner.alg.storage
         stored = {name: getattr(storage, name).clone() for name in STORED}
@@ -41,6 +40,16 @@ def _train(tmp_path: Path, mode: str, workers: int, iterations: int = 2, num_env
         weights.update({f"critic.{k}": v.clone() for k, v in runner.alg.critic.state_dict().items()})
         logged = (list(runner.logger.rewbuffer), list(runner.logger.lenbuffer))
         return weights, stored, (type(runner.alg), calls, logged, getattr(runner.alg, "rollout_fallbacks", 0))
+
+
+def _counting(method, calls: dict[str, int], name: str):
+    """``method`` counting its calls in ``calls[name]``."""
+
+    def counted(*args, **kwargs):
+        calls[name] += 1
+        return method(*args, **kwargs)
+
+    return counted
 
 
 @pytest.mark.parametrize("mode", ["pipeline", "rollouts", "rollouts in parts"])
