@@ -109,6 +109,11 @@ def _blocks(num_envs: int, workers: int, first: int | None = None) -> list[range
     return [range(int(end - size), int(end)) for size, end in zip(sizes, ends, strict=True)]
 
 
+def _same(actions: torch.Tensor, expected: np.ndarray) -> bool:
+    """Whether ``actions`` are, as float32, the actions ``expected`` (those the workers stepped with)."""
+    return np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), expected)
+
+
 @dataclasses.dataclass
 class _Replay:
     """A rollout being served by :meth:`NavVecEnv.step`: its length, each step's worker replies
@@ -397,7 +402,7 @@ class NavVecEnv(VecEnv):
             return self._serve(actions, start)
         if self._pending is None:
             self._start_step(actions)
-        elif not np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), self._buf["actions"]):
+        elif not _same(actions, self._buf["actions"]):
             # the dispatched actions were checked (shape, finite) before they went out
             self.close()
             raise ValueError("step() got other actions than dispatch(): the worker processes stepped with "
@@ -481,9 +486,14 @@ class NavVecEnv(VecEnv):
             raise ValueError(f"non-finite actions (NaN/inf) at rollout step {t} for envs {envs[:16]}: the "
                              "policy diverged; the adapter is closed (the other workers stepped on)")
         steps_replies = [list(step) for step in zip(*(r for r, _ in replies), strict=True)]
-        own = [step[-1] for step in steps_replies] if self._remote < len(self._handles) else []
+        own = [step[-1] for step in steps_replies] if self._steps_own_block else []
         waited = seconds - sum(reply[3] + reply[5] for reply in own)  # for the worker processes, at the end
         self._replay = _Replay(steps, steps_replies, max(waited, 0.0) / steps)
+
+    @property
+    def _steps_own_block(self) -> bool:
+        """Whether this process steps a block itself (its handle comes last; its reply too)."""
+        return self._remote < len(self._handles)
 
     @property
     def rollout_blocks(self) -> list[range]:
@@ -512,7 +522,7 @@ class NavVecEnv(VecEnv):
         """:meth:`step` while a rollout is served: its next recorded step, for its actions only."""
         replay, rec = self._replay, self._record[1]
         t = replay.served
-        if not np.array_equal(actions.detach().to("cpu", torch.float32).numpy(), rec["actions"][t]):
+        if not _same(actions, rec["actions"][t]):
             self.close()
             raise ValueError(f"step() got other actions than the rollout's step {t}: the workers stepped with "
                              "the policy's, so the adapter is closed")
@@ -521,7 +531,7 @@ class NavVecEnv(VecEnv):
             self._replay = None
         step = {name: rec[name][t] for name in _RESULTS}
         self._read_observations(step)
-        own = replay.replies[t][-1] if self._remote < len(self._handles) else None
+        own = replay.replies[t][-1] if self._steps_own_block else None
         self._split = (0.0 if own is None else own[3], replay.wait_s)
         lengths = self.episode_length_buf.cpu().numpy() + 1
         result = self._results(step, lengths, replay.replies[t], start, time.perf_counter() - start)

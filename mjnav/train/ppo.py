@@ -91,7 +91,7 @@ class PipelinedPPO(PPO):
             env.reset()
         self._dispatch = None if recurrent or self.rnd is not None or not callable(dispatch) else dispatch
         rollouts = (self.worker_rollouts and self._dispatch is not None and callable(getattr(env, "rollout", None))
-                    and torch.device(self.device).type == "cpu" and not self.rollout_fallbacks
+                    and torch.device(self.device).type == "cpu"
                     and type(self.actor.distribution) is GaussianDistribution)
         self._rollout_env = env if rollouts else None
 
